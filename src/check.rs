@@ -1,0 +1,353 @@
+//! `am-sim check`: derived quantities of a scene and time-step advice, without running it.
+//!
+//! Per material pair (for the smallest and the largest radii present): E*, r*, m*, and with a bond
+//! δ_eq, δ_crit, v_crit (paper eqs. 13, 14, 21), the bond strength and its oscillation period;
+//! Hertz contact time at the largest expected impact speed (M.8) and the Rayleigh time (M.9).
+
+use std::fmt::{self, Write as _};
+
+use crate::contact::{BondParams, hertz};
+use crate::model::Model;
+use crate::particles::Particles;
+
+/// Fewer steps than this per Hertz contact or bond oscillation resolve it poorly (warning).
+pub const MIN_STEPS_PER_CONTACT: f64 = 20.0;
+/// Steps per contact time that `check` recommends (restitution within ~1 %).
+pub const RECOMMENDED_STEPS_PER_CONTACT: f64 = 50.0;
+/// Largest dt as a fraction of the Rayleigh time (the LIGGGHTS/EDEM convention).
+pub const MAX_RAYLEIGH_FRACTION: f64 = 0.2;
+
+/// One row of the per-pair table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairRow {
+    /// Material names.
+    pub materials: (String, String),
+    /// Radii of the two spheres [m] (a wall has radius ∞).
+    pub radii: (f64, f64),
+    /// E* [Pa].
+    pub effective_modulus: f64,
+    /// r* [m].
+    pub effective_radius: f64,
+    /// m* [kg].
+    pub effective_mass: f64,
+    /// Hertz contact time at the expected impact speed [s].
+    pub contact_time: f64,
+    /// Bond quantities, when the scene has a bond.
+    pub bond: Option<BondRow>,
+}
+
+/// Bond quantities of one pair.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BondRow {
+    /// k_adh [N·m^-α].
+    pub adhesion_stiffness: f64,
+    /// δ_eq [m].
+    pub equilibrium_overlap: f64,
+    /// δ_crit [m].
+    pub critical_overlap: f64,
+    /// v_crit [m/s].
+    pub critical_velocity: f64,
+    /// Bond strength (largest attraction) [N].
+    pub strength: f64,
+    /// Period of small oscillations about δ_eq [s].
+    pub oscillation_period: f64,
+}
+
+/// Everything `check` prints.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckReport {
+    /// Time step [s].
+    pub dt: f64,
+    /// Steps of the run.
+    pub steps: u64,
+    /// Number of particles.
+    pub particles: usize,
+    /// The impact speed used for contact times [m/s], and where it comes from.
+    pub impact_speed: (f64, &'static str),
+    /// Per-pair rows.
+    pub pairs: Vec<PairRow>,
+    /// Smallest Rayleigh time over materials and radii [s].
+    pub rayleigh_time: f64,
+    /// Largest initial overlap relative to the smaller radius.
+    pub initial_overlap_ratio: f64,
+    /// Recommended dt [s].
+    pub recommended_dt: f64,
+    /// Warnings (empty when dt is fine).
+    pub warnings: Vec<String>,
+}
+
+/// Smallest and largest radius of each material present (None for absent materials).
+fn radius_range(model: &Model, particles: &Particles) -> Vec<Option<(f64, f64)>> {
+    let mut ranges = vec![None; model.materials.len()];
+    for (r, m) in particles.radius.iter().zip(&particles.material) {
+        let slot: &mut Option<(f64, f64)> = &mut ranges[usize::from(*m)];
+        *slot = Some(slot.map_or((*r, *r), |(lo, hi)| (lo.min(*r), hi.max(*r))));
+    }
+    ranges
+}
+
+/// The largest impact speed to expect: the scene's value, else the larger of twice the largest
+/// initial speed and the free-fall speed over the height of the scene along gravity.
+#[must_use]
+pub fn expected_impact_speed(model: &Model, particles: &Particles) -> (f64, &'static str) {
+    if let Some(v) = model.expected_impact_speed {
+        return (v, "simulation.expected_impact_speed_m_s");
+    }
+    let initial = 2.0
+        * particles
+            .velocity
+            .iter()
+            .map(|v| v.length())
+            .fold(0.0, f64::max);
+    let g = model.gravity.length();
+    let fall = if g > 0.0 {
+        let up = -model.gravity / g;
+        let heights = particles.position.iter().map(|x| x.dot(up));
+        let top = heights.clone().fold(f64::NEG_INFINITY, f64::max);
+        let bottom = model
+            .walls
+            .iter()
+            .filter(|w| w.normal.dot(up) > 0.5)
+            .map(|w| w.point.dot(up))
+            .chain(heights)
+            .fold(f64::INFINITY, f64::min);
+        (2.0 * g * (top - bottom)).sqrt()
+    } else {
+        0.0
+    };
+    if fall > initial {
+        (fall, "free fall over the scene height")
+    } else {
+        (initial, "2 × largest initial speed")
+    }
+}
+
+/// Builds the report.
+#[must_use]
+pub fn report(model: &Model, particles: &Particles, initial_overlap_ratio: f64) -> CheckReport {
+    let ranges = radius_range(model, particles);
+    let (speed, source) = expected_impact_speed(model, particles);
+    let mass = |material: usize, r: f64| {
+        model.materials[material].density * 4.0 / 3.0 * std::f64::consts::PI * r.powi(3)
+    };
+    let mut pairs = Vec::new();
+    let mut rayleigh = f64::INFINITY;
+    let names = |a: usize, b: Option<usize>| {
+        (
+            model.materials[a].name.clone(),
+            b.map_or_else(|| "wall".to_string(), |b| model.materials[b].name.clone()),
+        )
+    };
+    for a in 0..model.materials.len() {
+        let Some((lo_a, hi_a)) = ranges[a] else {
+            continue;
+        };
+        let m = &model.materials[a];
+        rayleigh = rayleigh.min(hertz::rayleigh_time(
+            lo_a,
+            m.density,
+            m.youngs_modulus,
+            m.poisson_ratio,
+        ));
+        for (b, range_b) in ranges.iter().enumerate().skip(a) {
+            let Some((lo_b, hi_b)) = *range_b else {
+                continue;
+            };
+            let params =
+                model.pair_params(u16::try_from(a).unwrap_or(0), u16::try_from(b).unwrap_or(0));
+            let mut sizes = vec![(lo_a, lo_b)];
+            if (hi_a, hi_b) != (lo_a, lo_b) {
+                sizes.push((hi_a, hi_b));
+            }
+            for (ra, rb) in sizes {
+                let r_star = hertz::effective_radius(ra, rb);
+                let m_star = hertz::effective_mass(mass(a, ra), mass(b, rb));
+                pairs.push(pair_row(
+                    names(a, Some(b)),
+                    (ra, rb),
+                    params.effective_modulus,
+                    r_star,
+                    m_star,
+                    speed,
+                    params.bond.as_ref(),
+                ));
+            }
+        }
+        for w in 0..model.walls.len() {
+            let params = model.wall_params(w, u16::try_from(a).unwrap_or(0));
+            pairs.push(pair_row(
+                names(a, None),
+                (lo_a, f64::INFINITY),
+                params.effective_modulus,
+                lo_a,
+                mass(a, lo_a),
+                speed,
+                None,
+            ));
+        }
+    }
+    pairs.dedup();
+
+    let mut recommended = MAX_RAYLEIGH_FRACTION * rayleigh;
+    let mut warnings = Vec::new();
+    let dt = model.dt;
+    if dt > MAX_RAYLEIGH_FRACTION * rayleigh {
+        warnings.push(format!(
+            "dt = {dt:.3e} s exceeds {MAX_RAYLEIGH_FRACTION} × the Rayleigh time {rayleigh:.3e} s"
+        ));
+    }
+    for row in &pairs {
+        let label = format!(
+            "{}–{} (r = {:.3e}, {:.3e} m)",
+            row.materials.0, row.materials.1, row.radii.0, row.radii.1
+        );
+        if row.contact_time.is_finite() {
+            recommended = recommended.min(row.contact_time / RECOMMENDED_STEPS_PER_CONTACT);
+            if dt > row.contact_time / MIN_STEPS_PER_CONTACT {
+                warnings.push(format!(
+                    "{label}: dt = {dt:.3e} s resolves the Hertz contact time {:.3e} s at {speed:.3} m/s with only {:.1} steps (want ≥ {MIN_STEPS_PER_CONTACT})",
+                    row.contact_time,
+                    row.contact_time / dt
+                ));
+            }
+        }
+        if let Some(bond) = &row.bond {
+            if bond.oscillation_period > 0.0 && bond.oscillation_period.is_finite() {
+                recommended =
+                    recommended.min(bond.oscillation_period / RECOMMENDED_STEPS_PER_CONTACT);
+                if dt > bond.oscillation_period / MIN_STEPS_PER_CONTACT {
+                    warnings.push(format!(
+                        "{label}: dt = {dt:.3e} s resolves the bond oscillation period {:.3e} s with only {:.1} steps (want ≥ {MIN_STEPS_PER_CONTACT})",
+                        bond.oscillation_period,
+                        bond.oscillation_period / dt
+                    ));
+                }
+            }
+        }
+    }
+    CheckReport {
+        dt,
+        steps: model.steps,
+        particles: particles.len(),
+        impact_speed: (speed, source),
+        pairs,
+        rayleigh_time: rayleigh,
+        initial_overlap_ratio,
+        recommended_dt: recommended,
+        warnings,
+    }
+}
+
+fn pair_row(
+    materials: (String, String),
+    radii: (f64, f64),
+    e_star: f64,
+    r_star: f64,
+    m_star: f64,
+    speed: f64,
+    bond: Option<&BondParams>,
+) -> PairRow {
+    let contact_time = if speed > 0.0 {
+        hertz::contact_time(m_star, e_star, r_star, speed)
+    } else {
+        f64::INFINITY
+    };
+    PairRow {
+        materials,
+        radii,
+        effective_modulus: e_star,
+        effective_radius: r_star,
+        effective_mass: m_star,
+        contact_time,
+        bond: bond.map(|b| BondRow {
+            adhesion_stiffness: b.adhesion_stiffness,
+            equilibrium_overlap: b.equilibrium_overlap(e_star, r_star),
+            critical_overlap: b.critical_overlap(e_star, r_star),
+            critical_velocity: b.critical_velocity(e_star, r_star, m_star),
+            strength: b.strength(e_star, r_star),
+            oscillation_period: 2.0 * std::f64::consts::PI
+                / b.oscillation_frequency(e_star, r_star, m_star),
+        }),
+    }
+}
+
+impl fmt::Display for CheckReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "scene is valid: {} particles, {} steps of dt = {:.3e} s",
+            self.particles, self.steps, self.dt
+        )?;
+        writeln!(
+            f,
+            "expected impact speed: {:.4} m/s ({})",
+            self.impact_speed.0, self.impact_speed.1
+        )?;
+        writeln!(f)?;
+        for row in &self.pairs {
+            let mut line = format!(
+                "{} – {} (r = {:.4e} m, {}):\n    E* = {:.4e} Pa, r* = {:.4e} m, m* = {:.4e} kg, Hertz contact time {}",
+                row.materials.0,
+                row.materials.1,
+                row.radii.0,
+                if row.radii.1.is_finite() {
+                    format!("{:.4e} m", row.radii.1)
+                } else {
+                    "plane".into()
+                },
+                row.effective_modulus,
+                row.effective_radius,
+                row.effective_mass,
+                if row.contact_time.is_finite() {
+                    format!(
+                        "{:.4e} s ({:.1} steps)",
+                        row.contact_time,
+                        row.contact_time / self.dt
+                    )
+                } else {
+                    "n/a (no impact expected)".into()
+                },
+            );
+            if let Some(b) = &row.bond {
+                let _ = write!(
+                    line,
+                    "\n    bond: k_adh = {:.4e} N/m^α, δ_eq = {:.4e} m, δ_crit = {:.4e} m (ε_crit = {:.4e}), v_crit = {:.4} m/s,\n          strength {:.4e} N, oscillation period at δ_eq {:.4e} s ({:.1} steps)",
+                    b.adhesion_stiffness,
+                    b.equilibrium_overlap,
+                    b.critical_overlap,
+                    b.critical_overlap / row.effective_radius,
+                    b.critical_velocity,
+                    b.strength,
+                    b.oscillation_period,
+                    b.oscillation_period / self.dt
+                );
+            }
+            writeln!(f, "{line}")?;
+        }
+        writeln!(f)?;
+        writeln!(
+            f,
+            "Rayleigh time (smallest sphere): {:.4e} s; dt = {:.3} × Rayleigh time",
+            self.rayleigh_time,
+            self.dt / self.rayleigh_time
+        )?;
+        writeln!(
+            f,
+            "largest initial overlap: {:.3} % of the smaller radius",
+            100.0 * self.initial_overlap_ratio
+        )?;
+        writeln!(
+            f,
+            "recommended dt ≤ {:.3e} s (≥ {RECOMMENDED_STEPS_PER_CONTACT} steps per contact and per bond oscillation, ≤ {MAX_RAYLEIGH_FRACTION} × Rayleigh time)",
+            self.recommended_dt
+        )?;
+        if self.warnings.is_empty() {
+            writeln!(f, "time step: OK")?;
+        } else {
+            for w in &self.warnings {
+                writeln!(f, "warning: {w}")?;
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,25 @@
+//! # am-sim
+//!
+//! A thermo-mechanical discrete-element simulator of additive-manufacturing powder beds: spheres
+//! in Hertz contact with viscous damping that switch to the adhesive bond model of
+//! Quintana-Ruiz & Campello (2020) when a bond criterion holds and the overlap reaches δ_crit.
+//!
+//! * **Units**: SI everywhere (m, s, kg, N, Pa, J). Scene keys carry their unit as a suffix.
+//! * **Signs**: `n_ij` points from i to j; the overlap δ is positive in contact; a scalar normal
+//!   force is positive when repulsive (see [`contact`]).
+//! * **Data flow**: [`scene`] (TOML, validated) → [`model`] (resolved numbers, initial
+//!   [`particles`]) → [`simulation`] (step loop: [`integrate`], [`neighbor`], [`forces`], which call
+//!   the pure laws in [`contact`]) → [`output`]. `docs/architecture.md` has the one-page map,
+//!   `docs/model.md` the numbered equations cited in doc comments as (M.x).
+
+pub mod check;
+pub mod cli;
+pub mod contact;
+pub mod forces;
+pub mod integrate;
+pub mod model;
+pub mod neighbor;
+pub mod output;
+pub mod particles;
+pub mod scene;
+pub mod simulation;

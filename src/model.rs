@@ -1,0 +1,307 @@
+//! The resolved run: a validated [`Scene`] turned into plain numbers (materials, a dense table of
+//! contact parameters per material pair, walls, the bond criterion) and the initial particles.
+//! Nothing downstream of this module reads TOML or strings.
+
+use std::path::PathBuf;
+
+use glam::DVec3;
+
+use crate::contact::{BondParams, NormalParams, bond, hertz};
+use crate::particles::{ParticleInit, Particles};
+use crate::scene::{CriterionConfig, Scene, validate::lattice_sites};
+
+/// Elastic data of one material (SI).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Material {
+    /// Name in the scene (`[materials.NAME]`).
+    pub name: String,
+    /// Density [kg/m³].
+    pub density: f64,
+    /// Young's modulus [Pa].
+    pub youngs_modulus: f64,
+    /// Poisson ratio.
+    pub poisson_ratio: f64,
+}
+
+/// An infinite plane wall.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Wall {
+    /// A point of the plane [m].
+    pub point: DVec3,
+    /// Unit normal, pointing into the domain.
+    pub normal: DVec3,
+    /// Index into `Model::materials`.
+    pub material: u16,
+}
+
+/// The bond criterion of paper eq. 25: whether a pair may switch to the bonded branch. Evaluated
+/// outside the force law, which receives only its `bool`, so new criteria (melting temperature)
+/// plug in here without touching `contact`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BondCriterion {
+    /// Every pair, always.
+    Always,
+    /// No pair, ever.
+    Never,
+}
+
+impl BondCriterion {
+    /// Whether the criterion holds for the pair `(i, j)`. The arguments are symmetric, so the
+    /// answer cannot depend on which particle is called i.
+    #[must_use]
+    pub fn holds(self, _i: usize, _j: usize) -> bool {
+        match self {
+            Self::Always => true,
+            Self::Never => false,
+        }
+    }
+}
+
+/// What the run writes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OutputSettings {
+    /// CSV time series, if asked for.
+    pub series_csv: Option<PathBuf>,
+    /// Steps between output rows (≥ 1).
+    pub every_steps: u64,
+}
+
+/// Resolved, immutable run parameters.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// Scene title.
+    pub title: String,
+    /// Time step [s].
+    pub dt: f64,
+    /// Number of steps of the run.
+    pub steps: u64,
+    /// Gravitational acceleration [m/s²].
+    pub gravity: DVec3,
+    /// Verlet skin [m].
+    pub skin: f64,
+    /// Materials, indexed by `Particles::material`.
+    pub materials: Vec<Material>,
+    /// Walls.
+    pub walls: Vec<Wall>,
+    /// Bond criterion (only meaningful when the pair parameters carry a bond).
+    pub bond_criterion: BondCriterion,
+    /// User's largest expected impact speed [m/s], if given.
+    pub expected_impact_speed: Option<f64>,
+    /// Output settings.
+    pub output: OutputSettings,
+    /// `[a * n + b]`: normal-law parameters of material pair (a, b); symmetric.
+    pair_params: Vec<NormalParams>,
+    /// `[w * n + a]`: particle (material a) against wall w; never bonded.
+    wall_params: Vec<NormalParams>,
+}
+
+impl Model {
+    /// Normal-law parameters of two particle materials.
+    #[must_use]
+    #[inline]
+    pub fn pair_params(&self, a: u16, b: u16) -> &NormalParams {
+        &self.pair_params[usize::from(a) * self.materials.len() + usize::from(b)]
+    }
+
+    /// Normal-law parameters of a particle material against wall `wall`.
+    #[must_use]
+    #[inline]
+    pub fn wall_params(&self, wall: usize, material: u16) -> &NormalParams {
+        &self.wall_params[wall * self.materials.len() + usize::from(material)]
+    }
+
+    /// True when the scene has a `[bond]` section.
+    #[must_use]
+    pub fn has_bonds(&self) -> bool {
+        self.pair_params.iter().any(|p| p.bond.is_some())
+    }
+
+    /// Resolves a validated scene into the model and the initial particles.
+    #[must_use]
+    pub fn build(scene: &Scene) -> (Self, Particles) {
+        let materials: Vec<Material> = scene
+            .materials
+            .iter()
+            .map(|(name, m)| Material {
+                name: name.clone(),
+                density: m.density_kg_m3,
+                youngs_modulus: m.youngs_modulus_pa,
+                poisson_ratio: m.poisson_ratio,
+            })
+            .collect();
+        let material_index = |name: &str| -> u16 {
+            let k = materials
+                .iter()
+                .position(|m| m.name == name)
+                .expect("validated: material exists");
+            u16::try_from(k).expect("fewer than 65536 materials")
+        };
+        let particles = initial_particles(scene, &materials, &material_index);
+
+        let e_star = |a: &Material, b: &Material| {
+            hertz::effective_modulus(
+                a.youngs_modulus,
+                a.poisson_ratio,
+                b.youngs_modulus,
+                b.poisson_ratio,
+            )
+        };
+        let mut pair_params = Vec::with_capacity(materials.len() * materials.len());
+        for a in &materials {
+            for b in &materials {
+                let effective_modulus = e_star(a, b);
+                let bond = scene.bond.as_ref().map(|cfg| {
+                    let adhesion_stiffness = cfg.adhesion_stiffness.unwrap_or_else(|| {
+                        let reference_radius =
+                            cfg.reference_radius_m.unwrap_or(particles.radius[0]);
+                        bond::adhesion_stiffness_for_equilibrium(
+                            effective_modulus,
+                            hertz::effective_radius(reference_radius, reference_radius),
+                            cfg.adhesion_exponent,
+                            cfg.equilibrium_overlap_m
+                                .expect("validated: one of the two is given"),
+                        )
+                    });
+                    BondParams {
+                        adhesion_exponent: cfg.adhesion_exponent,
+                        adhesion_stiffness,
+                        damping_ratio: cfg.damping_ratio,
+                    }
+                });
+                pair_params.push(NormalParams {
+                    effective_modulus,
+                    damping_ratio: scene.contact.damping_ratio,
+                    bond,
+                });
+            }
+        }
+
+        let walls: Vec<Wall> = scene
+            .walls
+            .iter()
+            .map(|w| Wall {
+                point: DVec3::from_array(w.point_m),
+                normal: DVec3::from_array(w.normal).normalize(),
+                material: material_index(&w.material),
+            })
+            .collect();
+        let mut wall_params = Vec::with_capacity(walls.len() * materials.len());
+        for w in &walls {
+            for a in &materials {
+                wall_params.push(NormalParams {
+                    effective_modulus: e_star(a, &materials[usize::from(w.material)]),
+                    damping_ratio: scene.contact.damping_ratio,
+                    bond: None,
+                });
+            }
+        }
+
+        let sim = &scene.simulation;
+        // Round-off in duration/dt (5e-3/5e-7 = 10000.000000000002) must not add a step.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let steps = (sim.duration_s / sim.dt_s * (1.0 - 1e-12)).ceil() as u64;
+        let smallest_radius = particles
+            .radius
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        let output = scene.output.as_ref();
+        let model = Self {
+            title: scene.scene.title.clone(),
+            dt: sim.dt_s,
+            steps,
+            gravity: DVec3::from_array(sim.gravity_m_s2),
+            // 10 % of the smallest diameter: LIGGGHTS and LAMMPS use 0.1-0.3 d for granular beds.
+            skin: sim.skin_m.unwrap_or(0.2 * smallest_radius),
+            materials,
+            walls,
+            bond_criterion: match scene.bond.as_ref().map(|b| b.criterion) {
+                Some(CriterionConfig::Always) => BondCriterion::Always,
+                Some(CriterionConfig::Never) | None => BondCriterion::Never,
+            },
+            expected_impact_speed: sim.expected_impact_speed_m_s,
+            output: OutputSettings {
+                series_csv: output
+                    .and_then(|o| o.series_csv.as_ref())
+                    .map(PathBuf::from),
+                every_steps: output
+                    .and_then(|o| o.every_steps)
+                    .unwrap_or((steps / 1000).max(1)),
+            },
+            pair_params,
+            wall_params,
+        };
+        (model, particles)
+    }
+}
+
+fn initial_particles(
+    scene: &Scene,
+    materials: &[Material],
+    material_index: &dyn Fn(&str) -> u16,
+) -> Particles {
+    let mut particles = Particles::default();
+    let mut push = |init: ParticleInit| {
+        let density = materials[usize::from(init.material)].density;
+        particles.push(init, density);
+    };
+    for p in &scene.particles {
+        push(ParticleInit {
+            position: DVec3::from_array(p.position_m),
+            velocity: DVec3::from_array(p.velocity_m_s),
+            radius: p.radius_m,
+            material: material_index(&p.material),
+        });
+    }
+    for l in &scene.lattice {
+        let spacing = l.spacing_m.unwrap_or(2.0 * l.radius_m);
+        let lo = DVec3::from_array(l.min_corner_m);
+        let extent = DVec3::from_array(l.max_corner_m) - lo;
+        let counts = [0, 1, 2].map(|axis| lattice_sites(extent[axis], l.radius_m, spacing));
+        let mut rng = SplitMix64(l.seed);
+        let material = material_index(&l.material);
+        for k in 0..counts[2] {
+            for j in 0..counts[1] {
+                for i in 0..counts[0] {
+                    #[allow(clippy::cast_precision_loss)]
+                    let site = lo
+                        + DVec3::splat(l.radius_m)
+                        + spacing * DVec3::new(i as f64, j as f64, k as f64);
+                    let jitter = if l.jitter_m > 0.0 {
+                        DVec3::new(rng.symmetric(), rng.symmetric(), rng.symmetric()) * l.jitter_m
+                    } else {
+                        DVec3::ZERO
+                    };
+                    push(ParticleInit {
+                        position: site + jitter,
+                        velocity: DVec3::from_array(l.velocity_m_s),
+                        radius: l.radius_m,
+                        material,
+                    });
+                }
+            }
+        }
+    }
+    particles
+}
+
+/// SplitMix64 (Steele, Lea & Flood 2014): a tiny, well-mixed generator whose sequence is fixed
+/// forever, so a seed in a scene file always gives the same bed, whatever crate versions are used.
+struct SplitMix64(u64);
+
+impl SplitMix64 {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [−1, 1).
+    fn symmetric(&mut self) -> f64 {
+        #[allow(clippy::cast_precision_loss)]
+        let unit = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+        2.0 * unit - 1.0
+    }
+}

@@ -1,0 +1,300 @@
+//! Neighbour search: a cell list builds a Verlet half list of candidate pairs (centre distance
+//! below `r_i + r_j + skin`), rebuilt when a particle moved more than half the skin since the last
+//! build. Between builds no pair can come into contact unseen, because two particles close a gap
+//! of at most `skin` in total.
+//!
+//! # Invariants
+//! * Pairs are sorted by their key `(id_lo, id_hi)` of stable particle ids, so the per-pair history
+//!   (the bond state) is carried over a rebuild by a linear merge-join, whatever the particle order.
+//! * Every touching pair is in the list (its distance is below `r_i + r_j`). A bond breaks at
+//!   `δ_crit ≥ 0`, so a bonded pair always touches and its state is never dropped; debug builds
+//!   check this on every rebuild.
+//! * The order of pairs, and of each particle's incident pairs (the CSR `incidence`), depends only
+//!   on ids and positions, never on the thread count: the force gather sums in that fixed order.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::contact::BondState;
+
+/// One entry of a particle's incident pairs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Incidence {
+    /// Index into `NeighborList::pairs`.
+    pub pair: u32,
+    /// True when the particle is the pair's first member (the pair result is the force on it);
+    /// false when it is the second (it receives the opposite force).
+    pub first: bool,
+}
+
+/// Verlet half list with CSR incidence and rebuild bookkeeping.
+#[derive(Debug, Clone, Default)]
+pub struct NeighborList {
+    /// `[first, second]` particle indices, `id[first] < id[second]`, sorted by `(id, id)`.
+    pub pairs: Vec<[u32; 2]>,
+    keys: Vec<(u64, u64)>,
+    /// CSR offsets: particle k's incident pairs are `incidence[offsets[k]..offsets[k + 1]]`.
+    pub offsets: Vec<u32>,
+    /// Incident pairs of every particle, in increasing pair index.
+    pub incidence: Vec<Incidence>,
+    reference_positions: Vec<DVec3>,
+    skin: f64,
+    /// Number of builds so far.
+    pub builds: u64,
+}
+
+impl NeighborList {
+    /// An empty list with the given skin [m].
+    #[must_use]
+    pub fn new(skin: f64) -> Self {
+        Self {
+            skin,
+            ..Self::default()
+        }
+    }
+
+    /// True when some particle moved more than half the skin since the last build (or there was none).
+    #[must_use]
+    pub fn needs_rebuild(&self, positions: &[DVec3]) -> bool {
+        if self.reference_positions.len() != positions.len() {
+            return true;
+        }
+        let limit = 0.25 * self.skin * self.skin;
+        positions
+            .par_iter()
+            .zip(&self.reference_positions)
+            .any(|(x, x0)| (*x - *x0).length_squared() > limit)
+    }
+
+    /// Rebuilds the list and carries each pair's state over by its id key; pairs that left the
+    /// list drop their state (they are not touching, so it is `Unbonded`).
+    pub fn rebuild(
+        &mut self,
+        positions: &[DVec3],
+        radii: &[f64],
+        ids: &[u64],
+        states: &mut Vec<BondState>,
+    ) {
+        let mut candidates = candidate_pairs(positions, radii, ids, self.skin);
+        candidates.par_sort_unstable_by_key(|(key, _)| *key);
+
+        let mut new_states = Vec::with_capacity(candidates.len());
+        let mut old = self.keys.iter().zip(states.iter()).peekable();
+        for (key, _) in &candidates {
+            while let Some((old_key, old_state)) = old.peek() {
+                if *old_key < key {
+                    debug_assert_eq!(
+                        **old_state,
+                        BondState::Unbonded,
+                        "bonded pair {old_key:?} left the neighbour list"
+                    );
+                    old.next();
+                } else {
+                    break;
+                }
+            }
+            match old.peek() {
+                Some((old_key, old_state)) if *old_key == key => {
+                    new_states.push(**old_state);
+                    old.next();
+                }
+                _ => new_states.push(BondState::Unbonded),
+            }
+        }
+        debug_assert!(
+            old.all(|(_, s)| *s == BondState::Unbonded),
+            "a bonded pair left the neighbour list"
+        );
+        *states = new_states;
+
+        self.keys = candidates.iter().map(|(key, _)| *key).collect();
+        self.pairs = candidates.into_iter().map(|(_, pair)| pair).collect();
+        self.build_incidence(positions.len());
+        self.reference_positions.clear();
+        self.reference_positions.extend_from_slice(positions);
+        self.builds += 1;
+    }
+
+    fn build_incidence(&mut self, particle_count: usize) {
+        let mut counts = vec![0u32; particle_count + 1];
+        for [a, b] in &self.pairs {
+            counts[*a as usize + 1] += 1;
+            counts[*b as usize + 1] += 1;
+        }
+        for k in 1..counts.len() {
+            counts[k] += counts[k - 1];
+        }
+        self.offsets = counts;
+        let mut fill = self.offsets.clone();
+        self.incidence = vec![
+            Incidence {
+                pair: 0,
+                first: true
+            };
+            self.pairs.len() * 2
+        ];
+        for (p, [a, b]) in self.pairs.iter().enumerate() {
+            let pair = u32::try_from(p).expect("fewer than 2^32 pairs");
+            for (particle, first) in [(*a, true), (*b, false)] {
+                let slot = &mut fill[particle as usize];
+                self.incidence[*slot as usize] = Incidence { pair, first };
+                *slot += 1;
+            }
+        }
+    }
+
+    /// Incident pairs of particle `k`.
+    #[must_use]
+    #[inline]
+    pub fn incident(&self, k: usize) -> &[Incidence] {
+        &self.incidence[self.offsets[k] as usize..self.offsets[k + 1] as usize]
+    }
+
+    /// The id key `(id_lo, id_hi)` of pair `p`.
+    #[must_use]
+    pub fn key(&self, p: usize) -> (u64, u64) {
+        self.keys[p]
+    }
+}
+
+type Candidate = ((u64, u64), [u32; 2]);
+
+/// All pairs closer than `r_i + r_j + skin`, found through a uniform cell grid of edge
+/// `2 r_max + skin`: a pair within the cutoff lies in the same or an adjacent cell. Cells are found
+/// by sorting the particles by cell (no dense grid), so stray particles far away cost no memory.
+fn candidate_pairs(positions: &[DVec3], radii: &[f64], ids: &[u64], skin: f64) -> Vec<Candidate> {
+    if positions.is_empty() {
+        return Vec::new();
+    }
+    let r_max = radii.iter().copied().fold(0.0, f64::max);
+    let cell = 2.0 * r_max + skin;
+    let origin = positions
+        .iter()
+        .copied()
+        .fold(DVec3::splat(f64::INFINITY), DVec3::min);
+    #[allow(clippy::cast_possible_truncation)]
+    let cell_of = |x: DVec3| -> [i64; 3] {
+        let c = ((x - origin) / cell).floor();
+        [c.x as i64, c.y as i64, c.z as i64]
+    };
+    let mut order: Vec<([i64; 3], u32)> = positions
+        .iter()
+        .enumerate()
+        .map(|(k, x)| {
+            (
+                cell_of(*x),
+                u32::try_from(k).expect("fewer than 2^32 particles"),
+            )
+        })
+        .collect();
+    order.par_sort_unstable();
+    // Distinct cells with the start of their run in `order`.
+    let mut cells: Vec<([i64; 3], usize)> = Vec::new();
+    for (k, (c, _)) in order.iter().enumerate() {
+        if cells.last().is_none_or(|(last, _)| last != c) {
+            cells.push((*c, k));
+        }
+    }
+    let members = |c: [i64; 3]| -> &[([i64; 3], u32)] {
+        match cells.binary_search_by(|(key, _)| key.cmp(&c)) {
+            Ok(pos) => {
+                let start = cells[pos].1;
+                let end = cells.get(pos + 1).map_or(order.len(), |(_, s)| *s);
+                &order[start..end]
+            }
+            Err(_) => &[],
+        }
+    };
+
+    (0..positions.len())
+        .into_par_iter()
+        .flat_map_iter(|i| {
+            let c = cell_of(positions[i]);
+            let mut found = Vec::new();
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        for &(_, j) in members([c[0] + dx, c[1] + dy, c[2] + dz]) {
+                            let j = j as usize;
+                            if j <= i {
+                                continue;
+                            }
+                            let cutoff = radii[i] + radii[j] + skin;
+                            if (positions[j] - positions[i]).length_squared() < cutoff * cutoff {
+                                #[allow(clippy::cast_possible_truncation)]
+                                let (a, b) = if ids[i] < ids[j] {
+                                    (i as u32, j as u32)
+                                } else {
+                                    (j as u32, i as u32)
+                                };
+                                found.push(((ids[a as usize], ids[b as usize]), [a, b]));
+                            }
+                        }
+                    }
+                }
+            }
+            found
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finds_exactly_the_pairs_within_the_cutoff() {
+        // A 5×5×5 jittered cloud, checked against the O(n²) definition.
+        let mut positions = Vec::new();
+        let mut seed = 1u64;
+        for k in 0..125u32 {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            #[allow(clippy::cast_precision_loss)]
+            let jitter = (seed >> 40) as f64 / (1u64 << 24) as f64 * 0.5;
+            positions.push(
+                DVec3::new(f64::from(k % 5), f64::from((k / 5) % 5), f64::from(k / 25)) * 1.9
+                    + DVec3::splat(jitter),
+            );
+        }
+        let radii = vec![1.0; positions.len()];
+        let ids: Vec<u64> = (0..positions.len() as u64).rev().collect(); // ids opposite to indices
+        let mut list = NeighborList::new(0.3);
+        let mut states = Vec::new();
+        list.rebuild(&positions, &radii, &ids, &mut states);
+        let mut expected = 0;
+        for i in 0..positions.len() {
+            for j in i + 1..positions.len() {
+                if positions[i].distance(positions[j]) < 2.3 {
+                    expected += 1;
+                }
+            }
+        }
+        assert_eq!(list.pairs.len(), expected);
+        assert!(list.keys.windows(2).all(|w| w[0] < w[1]));
+        for [a, b] in &list.pairs {
+            assert!(ids[*a as usize] < ids[*b as usize]);
+        }
+        assert_eq!(list.incidence.len(), 2 * expected);
+    }
+
+    #[test]
+    fn bond_state_follows_the_pair_across_rebuilds() {
+        let mut positions = vec![DVec3::ZERO, DVec3::X * 1.9, DVec3::X * 10.0];
+        let radii = vec![1.0; 3];
+        let ids = vec![7, 3, 5];
+        let mut list = NeighborList::new(0.5);
+        let mut states = Vec::new();
+        list.rebuild(&positions, &radii, &ids, &mut states);
+        assert_eq!(list.pairs, vec![[1, 0]]);
+        states[0] = BondState::Bonded;
+        // A new pair (ids 5 and 7) appears in front of the old one in key order.
+        positions[2] = DVec3::new(-1.9, 0.0, 0.0);
+        list.rebuild(&positions, &radii, &ids, &mut states);
+        assert_eq!(list.pairs.len(), 2);
+        let bonded = list.keys.iter().position(|k| *k == (3, 7)).unwrap();
+        assert_eq!(states[bonded], BondState::Bonded);
+        assert_eq!(states[1 - bonded], BondState::Unbonded);
+    }
+}

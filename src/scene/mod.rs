@@ -1,0 +1,243 @@
+//! The scene file (TOML): what the user writes. Serde structures with `deny_unknown_fields`,
+//! loaded in two phases: parse/deserialize (type errors with the key path and line), then
+//! [`validate`] (ranges and cross-field rules, all violations at once). Physics modules never see
+//! this module; `crate::model` resolves a validated scene into plain numbers.
+//!
+//! Units are SI and every dimensional key names its unit as a suffix (`radius_m`, `dt_s`,
+//! `youngs_modulus_pa`). The format is documented in `docs/scene-format.md`.
+
+mod error;
+pub mod validate;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::Deserialize;
+
+pub use error::{SceneError, Violation};
+
+/// Version of the scene format this build reads (`[scene] version`).
+pub const FORMAT_VERSION: u32 = 1;
+
+/// A whole scene file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// `[scene]`: format version and a free-text title.
+    pub scene: SceneHeader,
+    /// `[simulation]`: time step, duration, gravity, neighbour skin.
+    pub simulation: SimulationConfig,
+    /// `[materials.NAME]`: elastic data per material, keyed by name.
+    pub materials: BTreeMap<String, MaterialConfig>,
+    /// `[contact]`: the normal contact law.
+    pub contact: ContactConfig,
+    /// `[bond]`: the adhesive bond model; absent means no bonding is built.
+    pub bond: Option<BondConfig>,
+    /// `[[particles]]`: explicitly listed particles.
+    #[serde(default)]
+    pub particles: Vec<ParticleConfig>,
+    /// `[[lattice]]`: particles generated on a simple cubic lattice in a box.
+    #[serde(default)]
+    pub lattice: Vec<LatticeConfig>,
+    /// `[[walls]]`: infinite planes.
+    #[serde(default)]
+    pub walls: Vec<WallConfig>,
+    /// `[output]`: what is written during the run.
+    pub output: Option<OutputConfig>,
+}
+
+/// `[scene]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneHeader {
+    /// Must equal [`FORMAT_VERSION`].
+    pub version: u32,
+    /// Free text, printed at the start of a run.
+    #[serde(default)]
+    pub title: String,
+}
+
+/// `[simulation]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulationConfig {
+    /// Time step [s], `> 0`.
+    pub dt_s: f64,
+    /// Simulated time [s], `> 0`; the run takes `ceil(duration_s / dt_s)` steps.
+    pub duration_s: f64,
+    /// Gravitational acceleration [m/s²]; default none.
+    #[serde(default)]
+    pub gravity_m_s2: [f64; 3],
+    /// Verlet-list skin [m], `> 0`; default 10 % of the smallest particle diameter.
+    pub skin_m: Option<f64>,
+    /// Largest relative impact speed expected [m/s], for `am-sim check`'s time-step advice;
+    /// default: twice the largest initial speed, or the free-fall speed over the scene height.
+    pub expected_impact_speed_m_s: Option<f64>,
+}
+
+/// `[materials.NAME]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialConfig {
+    /// Mass density [kg/m³], `> 0`.
+    pub density_kg_m3: f64,
+    /// Young's modulus [Pa], `> 0`.
+    pub youngs_modulus_pa: f64,
+    /// Poisson ratio, in `(−1, 0.5)`.
+    pub poisson_ratio: f64,
+}
+
+/// `[contact]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactConfig {
+    /// Normal contact model; only `"hertz"` (paper eqs. 12, 26).
+    pub model: ContactModel,
+    /// Contact damping ratio ξ_con of paper eq. 26, `≥ 0`.
+    pub damping_ratio: f64,
+}
+
+/// Normal contact models.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactModel {
+    /// Hertz with the nonlinear viscous damping of paper eq. 26.
+    Hertz,
+}
+
+/// `[bond]`: paper eqs. 13-25. Give exactly one of `adhesion_stiffness` and `equilibrium_overlap_m`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BondConfig {
+    /// Adhesion exponent α_adh, `0 ≤ α_adh < 1.5`.
+    pub adhesion_exponent: f64,
+    /// Adhesion stiffness k_adh [N·m^(−α_adh)], `≥ 0`.
+    pub adhesion_stiffness: Option<f64>,
+    /// Equilibrium overlap δ_eq [m], `> 0`: k_adh is derived from it by paper eq. 13 (as in the
+    /// paper's section 5.1) for two spheres of radius `reference_radius_m`.
+    pub equilibrium_overlap_m: Option<f64>,
+    /// Radius of the two equal spheres at which `equilibrium_overlap_m` holds [m]; default the
+    /// radius of the particles when they all have the same one.
+    pub reference_radius_m: Option<f64>,
+    /// Bond damping ratio ξ_bond of paper eq. 23, `≥ 0`.
+    pub damping_ratio: f64,
+    /// When the bond criterion holds.
+    pub criterion: CriterionConfig,
+}
+
+/// The bond criterion of paper eq. 25.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum CriterionConfig {
+    /// Holds for every pair at all times (a bond forms whenever `δ ≥ δ_crit`).
+    Always,
+    /// Never holds (the bonded branch is never entered).
+    Never,
+}
+
+/// `[[particles]]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleConfig {
+    /// Centre [m].
+    pub position_m: [f64; 3],
+    /// Velocity [m/s]; default at rest.
+    #[serde(default)]
+    pub velocity_m_s: [f64; 3],
+    /// Radius [m], `> 0`.
+    pub radius_m: f64,
+    /// Name of a `[materials.NAME]` table.
+    pub material: String,
+}
+
+/// `[[lattice]]`: a simple cubic lattice of equal spheres filling a box.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LatticeConfig {
+    /// Lower corner of the box [m]; every sphere lies fully inside the box.
+    pub min_corner_m: [f64; 3],
+    /// Upper corner of the box [m].
+    pub max_corner_m: [f64; 3],
+    /// Radius [m], `> 0`.
+    pub radius_m: f64,
+    /// Distance between neighbouring lattice sites [m]; default `2 radius_m` (touching).
+    pub spacing_m: Option<f64>,
+    /// Random displacement of each site, uniform in `[−jitter_m, jitter_m]` per axis [m];
+    /// `jitter_m ≤ (spacing − 2 radius)/2` so that no two spheres overlap. Default 0.
+    #[serde(default)]
+    pub jitter_m: f64,
+    /// Seed of the jitter's random sequence (the same seed gives the same positions).
+    #[serde(default)]
+    pub seed: u64,
+    /// Velocity of every particle [m/s]; default at rest.
+    #[serde(default)]
+    pub velocity_m_s: [f64; 3],
+    /// Name of a `[materials.NAME]` table.
+    pub material: String,
+}
+
+/// `[[walls]]`: an infinite plane; particles stay on the side the normal points to.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WallConfig {
+    /// A point of the plane [m].
+    pub point_m: [f64; 3],
+    /// Normal pointing into the domain (any length `> 0`; normalised).
+    pub normal: [f64; 3],
+    /// Name of a `[materials.NAME]` table (for E* of the particle–wall contact).
+    pub material: String,
+}
+
+/// `[output]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputConfig {
+    /// CSV file with one row per output step (time, energies, contacts, bonds, overlaps).
+    pub series_csv: Option<String>,
+    /// Steps between two rows, `≥ 1`; default about 1000 rows per run.
+    pub every_steps: Option<u64>,
+}
+
+impl Scene {
+    /// Reads, parses and validates a scene file.
+    ///
+    /// # Errors
+    /// [`SceneError`] naming the file, and the key, value and reason of every problem found.
+    pub fn load(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        Self::from_toml(&text).map_err(|e| e.in_file(path))
+    }
+
+    /// Parses and validates scene text.
+    ///
+    /// # Errors
+    /// [`SceneError::Parse`] for TOML syntax and type errors (with the dotted key path),
+    /// [`SceneError::Invalid`] with every range and consistency violation.
+    pub fn from_toml(text: &str) -> Result<Self, SceneError> {
+        let deserializer = toml::Deserializer::parse(text).map_err(|e| SceneError::Parse {
+            path: None,
+            key: String::new(),
+            message: e.to_string(),
+        })?;
+        let scene: Scene = serde_path_to_error::deserialize(deserializer).map_err(|e| {
+            let key = e.path().to_string();
+            SceneError::Parse {
+                path: None,
+                key,
+                message: e.into_inner().to_string(),
+            }
+        })?;
+        let violations = validate::validate(&scene);
+        if violations.is_empty() {
+            Ok(scene)
+        } else {
+            Err(SceneError::Invalid {
+                path: None,
+                violations,
+            })
+        }
+    }
+}

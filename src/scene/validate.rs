@@ -1,0 +1,304 @@
+//! Second phase of scene loading: ranges and cross-field rules on the deserialized [`Scene`].
+//! Every violation is collected (not just the first), each naming key, value and reason.
+
+use super::{FORMAT_VERSION, Scene, Violation};
+
+/// Largest number of particles a scene may generate (guards against a unit slip in a lattice box).
+pub const MAX_PARTICLES: u64 = 100_000_000;
+/// Largest number of steps a run may take (guards against `dt_s` given in the wrong unit).
+pub const MAX_STEPS: f64 = 1e12;
+
+struct Checker {
+    violations: Vec<Violation>,
+}
+
+impl Checker {
+    fn fail(&mut self, key: impl Into<String>, value: impl ToString, reason: impl Into<String>) {
+        self.violations.push(Violation {
+            key: key.into(),
+            value: value.to_string(),
+            reason: reason.into(),
+        });
+    }
+
+    fn finite(&mut self, key: &str, value: f64) -> bool {
+        if value.is_finite() {
+            true
+        } else {
+            self.fail(key, value, "must be a finite number");
+            false
+        }
+    }
+
+    fn positive(&mut self, key: &str, value: f64) {
+        if self.finite(key, value) && value <= 0.0 {
+            self.fail(key, value, "must be > 0");
+        }
+    }
+
+    fn non_negative(&mut self, key: &str, value: f64) {
+        if self.finite(key, value) && value < 0.0 {
+            self.fail(key, value, "must be ≥ 0");
+        }
+    }
+
+    fn finite_vector(&mut self, key: &str, value: [f64; 3]) {
+        if value.iter().any(|c| !c.is_finite()) {
+            self.fail(
+                key,
+                format!("{value:?}"),
+                "every component must be a finite number",
+            );
+        }
+    }
+
+    fn material(&mut self, scene: &Scene, key: &str, name: &str) {
+        if !scene.materials.contains_key(name) {
+            let known: Vec<&str> = scene.materials.keys().map(String::as_str).collect();
+            self.fail(
+                key,
+                format!("\"{name}\""),
+                format!("no such material; defined: {known:?}"),
+            );
+        }
+    }
+}
+
+/// Number of lattice sites along one axis for an interval of `length`: spheres of `radius` with
+/// centres `spacing` apart, every sphere fully inside.
+#[must_use]
+pub fn lattice_sites(length: f64, radius: f64, spacing: f64) -> u64 {
+    let free = length - 2.0 * radius;
+    if free < 0.0 {
+        0
+    } else {
+        // The small tolerance keeps a box of exactly n spacings from losing its last row to round-off.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let n = (free / spacing * (1.0 + 1e-12)).floor() as u64;
+        n + 1
+    }
+}
+
+/// Returns every violation in `scene` (empty when the scene is valid).
+#[must_use]
+pub fn validate(scene: &Scene) -> Vec<Violation> {
+    let mut c = Checker {
+        violations: Vec::new(),
+    };
+    if scene.scene.version != FORMAT_VERSION {
+        c.fail(
+            "scene.version",
+            scene.scene.version,
+            format!("this am-sim reads scene format version {FORMAT_VERSION}"),
+        );
+    }
+
+    let sim = &scene.simulation;
+    c.positive("simulation.dt_s", sim.dt_s);
+    c.positive("simulation.duration_s", sim.duration_s);
+    if sim.dt_s > 0.0 && sim.duration_s > 0.0 && sim.duration_s / sim.dt_s > MAX_STEPS {
+        c.fail(
+            "simulation.duration_s",
+            sim.duration_s,
+            format!("gives {:.3e} steps of dt_s = {} (more than {MAX_STEPS:e}): check the units (seconds)", sim.duration_s / sim.dt_s, sim.dt_s),
+        );
+    }
+    c.finite_vector("simulation.gravity_m_s2", sim.gravity_m_s2);
+    if let Some(skin) = sim.skin_m {
+        c.positive("simulation.skin_m", skin);
+    }
+    if let Some(speed) = sim.expected_impact_speed_m_s {
+        c.positive("simulation.expected_impact_speed_m_s", speed);
+    }
+
+    if scene.materials.is_empty() {
+        c.fail(
+            "materials",
+            "{}",
+            "define at least one [materials.NAME] table",
+        );
+    }
+    for (name, m) in &scene.materials {
+        let key = |field: &str| format!("materials.{name}.{field}");
+        c.positive(&key("density_kg_m3"), m.density_kg_m3);
+        c.positive(&key("youngs_modulus_pa"), m.youngs_modulus_pa);
+        if c.finite(&key("poisson_ratio"), m.poisson_ratio)
+            && !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5)
+        {
+            c.fail(
+                key("poisson_ratio"),
+                m.poisson_ratio,
+                "must be in (-1, 0.5)",
+            );
+        }
+    }
+
+    c.non_negative("contact.damping_ratio", scene.contact.damping_ratio);
+
+    if let Some(bond) = &scene.bond {
+        validate_bond(&mut c, scene, bond);
+    }
+
+    let mut total: u64 = 0;
+    for (k, p) in scene.particles.iter().enumerate() {
+        let key = |field: &str| format!("particles[{k}].{field}");
+        c.positive(&key("radius_m"), p.radius_m);
+        c.finite_vector(&key("position_m"), p.position_m);
+        c.finite_vector(&key("velocity_m_s"), p.velocity_m_s);
+        c.material(scene, &key("material"), &p.material);
+        total += 1;
+    }
+    for k in 0..scene.lattice.len() {
+        total = total.saturating_add(validate_lattice(&mut c, scene, k));
+    }
+    if total == 0 {
+        c.fail("particles", "[]", "the scene has no particles: add [[particles]] or a [[lattice]] that fits at least one sphere");
+    }
+    if total > MAX_PARTICLES {
+        c.fail(
+            "lattice",
+            total,
+            format!("more than {MAX_PARTICLES} particles: check the units (metres)"),
+        );
+    }
+
+    for (k, w) in scene.walls.iter().enumerate() {
+        c.finite_vector(&format!("walls[{k}].point_m"), w.point_m);
+        c.finite_vector(&format!("walls[{k}].normal"), w.normal);
+        let length = w.normal.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if length.is_finite() && length == 0.0 {
+            c.fail(
+                format!("walls[{k}].normal"),
+                format!("{:?}", w.normal),
+                "must not be the zero vector",
+            );
+        }
+        c.material(scene, &format!("walls[{k}].material"), &w.material);
+    }
+
+    if let Some(out) = &scene.output {
+        if out.every_steps == Some(0) {
+            c.fail("output.every_steps", 0, "must be ≥ 1");
+        }
+        if out.series_csv.as_deref() == Some("") {
+            c.fail("output.series_csv", "\"\"", "must be a file name");
+        }
+    }
+    c.violations
+}
+
+fn validate_bond(c: &mut Checker, scene: &Scene, bond: &super::BondConfig) {
+    let alpha = bond.adhesion_exponent;
+    if c.finite("bond.adhesion_exponent", alpha) && !(0.0..1.5).contains(&alpha) {
+        c.fail(
+            "bond.adhesion_exponent",
+            alpha,
+            "must be in [0, 1.5): the bond is stable only if the adhesion exponent is below the Hertz exponent 3/2 (paper eq. 9)",
+        );
+    }
+    c.non_negative("bond.damping_ratio", bond.damping_ratio);
+    match (bond.adhesion_stiffness, bond.equilibrium_overlap_m) {
+        (Some(_), Some(_)) => c.fail(
+            "bond.adhesion_stiffness",
+            "given together with bond.equilibrium_overlap_m",
+            "give exactly one of them: the other is derived by paper eq. 13",
+        ),
+        (None, None) => c.fail(
+            "bond",
+            "neither adhesion_stiffness nor equilibrium_overlap_m",
+            "give exactly one of them",
+        ),
+        (Some(k), None) => c.non_negative("bond.adhesion_stiffness", k),
+        (None, Some(d)) => c.positive("bond.equilibrium_overlap_m", d),
+    }
+    match (bond.reference_radius_m, bond.equilibrium_overlap_m) {
+        (Some(r), Some(_)) => c.positive("bond.reference_radius_m", r),
+        (Some(r), None) => c.fail(
+            "bond.reference_radius_m",
+            r,
+            "only used with bond.equilibrium_overlap_m",
+        ),
+        (None, Some(_)) => {
+            let radii = all_radii(scene);
+            if radii.iter().any(|r| *r != radii[0]) {
+                let (lo, hi) = radii.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), r| {
+                    (lo.min(*r), hi.max(*r))
+                });
+                c.fail(
+                    "bond.reference_radius_m",
+                    "missing",
+                    format!("particle radii differ ({lo} to {hi} m): say for which sphere radius equilibrium_overlap_m holds"),
+                );
+            }
+        }
+        (None, None) => {}
+    }
+}
+
+/// The radius of every particle source (explicit particles and lattices), for rules that need it.
+fn all_radii(scene: &Scene) -> Vec<f64> {
+    scene
+        .particles
+        .iter()
+        .map(|p| p.radius_m)
+        .chain(scene.lattice.iter().map(|l| l.radius_m))
+        .collect()
+}
+
+fn validate_lattice(c: &mut Checker, scene: &Scene, k: usize) -> u64 {
+    let l = &scene.lattice[k];
+    let key = |field: &str| format!("lattice[{k}].{field}");
+    let before = c.violations.len();
+    c.positive(&key("radius_m"), l.radius_m);
+    c.finite_vector(&key("min_corner_m"), l.min_corner_m);
+    c.finite_vector(&key("max_corner_m"), l.max_corner_m);
+    c.finite_vector(&key("velocity_m_s"), l.velocity_m_s);
+    c.non_negative(&key("jitter_m"), l.jitter_m);
+    c.material(scene, &key("material"), &l.material);
+    let spacing = l.spacing_m.unwrap_or(2.0 * l.radius_m);
+    if let Some(s) = l.spacing_m {
+        if c.finite(&key("spacing_m"), s) && s < 2.0 * l.radius_m {
+            c.fail(
+                key("spacing_m"),
+                s,
+                format!(
+                    "must be ≥ 2 × radius_m = {} so that the spheres do not overlap",
+                    2.0 * l.radius_m
+                ),
+            );
+        }
+    }
+    if l.jitter_m > 0.0 && l.jitter_m > (spacing - 2.0 * l.radius_m) / 2.0 {
+        c.fail(
+            key("jitter_m"),
+            l.jitter_m,
+            format!(
+                "must be ≤ (spacing_m − 2 radius_m)/2 = {} so that jittered spheres cannot overlap",
+                (spacing - 2.0 * l.radius_m) / 2.0
+            ),
+        );
+    }
+    if c.violations.len() > before {
+        return 0;
+    }
+    let mut count: u64 = 1;
+    for axis in 0..3 {
+        let n = lattice_sites(
+            l.max_corner_m[axis] - l.min_corner_m[axis],
+            l.radius_m,
+            spacing,
+        );
+        if n == 0 {
+            c.fail(
+                key("max_corner_m"),
+                format!("{:?}", l.max_corner_m),
+                format!(
+                    "the box is thinner than one sphere diameter along axis {}",
+                    ["x", "y", "z"][axis]
+                ),
+            );
+        }
+        count = count.saturating_mul(n);
+    }
+    count
+}
