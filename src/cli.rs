@@ -14,6 +14,15 @@ use crate::output::SeriesWriter;
 use crate::scene::Scene;
 use crate::simulation::{Diagnostics, Simulation};
 
+/// Prints to stdout. A closed pipe (`am-sim check scene.toml | head`) ends the output quietly
+/// instead of panicking as `println!` does.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 /// Thermo-mechanical DEM of additive-manufacturing powder beds.
 #[derive(Debug, Parser)]
 #[command(
@@ -86,10 +95,8 @@ fn load(path: &Path) -> Result<(Model, Simulation), String> {
 fn run_check(path: &Path) -> Result<(), String> {
     let (model, sim) = load(path)?;
     let initial = sim.diagnostics();
-    print!(
-        "{}",
-        check::report(&model, &sim.particles, initial.max_overlap_ratio)
-    );
+    let report = check::report(&model, &sim.particles, initial.max_overlap_ratio);
+    say!("{}", report.to_string().trim_end());
     Ok(())
 }
 
@@ -112,7 +119,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
         .map_err(|e| format!("cannot start the thread pool: {e}"))?;
 
     let report = check::report(&model, &sim.particles, sim.diagnostics().max_overlap_ratio);
-    println!(
+    say!(
         "am-sim {}: {}{} particles, {} steps of dt = {:.3e} s ({:.4e} s), {} threads",
         env!("CARGO_PKG_VERSION"),
         if model.title.is_empty() {
@@ -127,14 +134,14 @@ fn run(args: &RunArgs) -> Result<(), String> {
         pool.current_num_threads()
     );
     for w in &report.warnings {
-        println!("warning: {w}");
+        say!("warning: {w}");
     }
 
     let outcome = pool.install(|| run_loop(sim, &model, series.as_mut(), args.quiet));
     let (sim, initial, wall) = outcome?;
     print_summary(&sim, &initial, wall, pool.current_num_threads());
     if let Some(file) = &model.output.series_csv {
-        println!("time series written to {}", file.display());
+        say!("time series written to {}", file.display());
     }
     Ok(())
 }
@@ -198,18 +205,23 @@ fn run_loop(
 fn print_summary(sim: &Simulation, initial: &Diagnostics, wall: f64, threads: usize) {
     let d = sim.diagnostics();
     let particle_steps = sim.particles.len() as f64 * d.step as f64;
-    println!(
+    say!(
         "done: {} steps, simulated {:.4e} s in {:.3} s wall time ({threads} threads)",
-        d.step, d.time, wall
+        d.step,
+        d.time,
+        wall
     );
-    println!(
+    say!(
         "  speed: {:.3e} particle-steps/s ({:.3e} per thread)",
         particle_steps / wall.max(1e-9),
         particle_steps / wall.max(1e-9) / threads as f64
     );
-    println!(
+    say!(
         "  contacts: {} particle-particle, {} particle-wall; bonds: {}; neighbour-list builds: {}",
-        d.contacts, d.wall_contacts, d.bonds, d.neighbor_builds
+        d.contacts,
+        d.wall_contacts,
+        d.bonds,
+        d.neighbor_builds
     );
     let e0 = initial.mechanical_energy();
     let e1 = d.mechanical_energy();
@@ -218,11 +230,11 @@ fn print_summary(sim: &Simulation, initial: &Diagnostics, wall: f64, threads: us
         .abs()
         .max(e0.abs())
         .max(f64::MIN_POSITIVE);
-    println!(
+    say!(
         "  energy: mechanical {e0:.6e} J → {e1:.6e} J (change {:+.3e} relative; damping and bond formation lower it, a rise means dt is too large)",
         (e1 - e0) / scale
     );
-    println!(
+    say!(
         "  largest overlap now: {:.4e} m ({:.3} % of the smaller radius); kinetic energy {:.4e} J",
         d.max_overlap,
         100.0 * d.max_overlap_ratio,

@@ -50,36 +50,45 @@ pub fn pair_pass(
     states: &mut [BondState],
     results: &mut [PairResult],
 ) {
-    list.pairs
-        .par_iter()
-        .zip(states.par_iter_mut())
-        .zip(results.par_iter_mut())
-        .for_each(|((&[a, b], state), result)| {
-            let (a, b) = (a as usize, b as usize);
-            let (normal, overlap) = pair_geometry(particles, a, b);
-            if overlap <= 0.0 {
-                *state = BondState::Unbonded;
-                *result = PairResult {
-                    force_on_first: DVec3::ZERO,
-                    overlap,
-                };
-                return;
-            }
-            let kinematics = PairKinematics {
-                overlap,
-                overlap_rate: (particles.velocity[a] - particles.velocity[b]).dot(normal),
-                effective_radius: hertz::effective_radius(particles.radius[a], particles.radius[b]),
-                effective_mass: hertz::effective_mass(particles.mass[a], particles.mass[b]),
-            };
-            let params = model.pair_params(particles.material[a], particles.material[b]);
-            let criterion = model.bond_criterion.holds(a, b);
-            let outcome = contact::normal_force(params, &kinematics, *state, criterion);
-            *state = outcome.state;
+    let evaluate = |((&[a, b], state), result): ((&[u32; 2], &mut BondState), &mut PairResult)| {
+        let (a, b) = (a as usize, b as usize);
+        let (normal, overlap) = pair_geometry(particles, a, b);
+        if overlap <= 0.0 {
+            *state = BondState::Unbonded;
             *result = PairResult {
-                force_on_first: -outcome.force * normal,
+                force_on_first: DVec3::ZERO,
                 overlap,
             };
-        });
+            return;
+        }
+        let kinematics = PairKinematics {
+            overlap,
+            overlap_rate: (particles.velocity[a] - particles.velocity[b]).dot(normal),
+            effective_radius: hertz::effective_radius(particles.radius[a], particles.radius[b]),
+            effective_mass: hertz::effective_mass(particles.mass[a], particles.mass[b]),
+        };
+        let params = model.pair_params(particles.material[a], particles.material[b]);
+        let criterion = model.bond_criterion.holds(a, b);
+        let outcome = contact::normal_force(params, &kinematics, *state, criterion);
+        *state = outcome.state;
+        *result = PairResult {
+            force_on_first: -outcome.force * normal,
+            overlap,
+        };
+    };
+    if crate::worth_parallel(list.pairs.len()) {
+        let slots = states.par_iter_mut().zip(results.par_iter_mut());
+        list.pairs
+            .par_iter()
+            .zip(slots)
+            .for_each(|(p, (s, r))| evaluate(((p, s), r)));
+    } else {
+        let slots = states.iter_mut().zip(results.iter_mut());
+        list.pairs
+            .iter()
+            .zip(slots)
+            .for_each(|(p, (s, r))| evaluate(((p, s), r)));
+    }
 }
 
 /// Overlap of particle `k` with wall `w` [m] (positive in contact) and the wall's normal.
@@ -99,7 +108,7 @@ pub fn gather(
 ) {
     let mut forces = std::mem::take(&mut particles.force);
     let state = &*particles;
-    forces.par_iter_mut().enumerate().for_each(|(k, force)| {
+    let sum = |(k, force): (usize, &mut DVec3)| {
         let mut total = state.mass[k] * model.gravity;
         for incidence in list.incident(k) {
             let f = results[incidence.pair as usize].force_on_first;
@@ -125,6 +134,11 @@ pub fn gather(
             }
         }
         *force = total;
-    });
+    };
+    if crate::worth_parallel(forces.len()) {
+        forces.par_iter_mut().enumerate().for_each(sum);
+    } else {
+        forces.iter_mut().enumerate().for_each(sum);
+    }
     particles.force = forces;
 }

@@ -24,14 +24,25 @@ pub fn kick_drift(particles: &mut Particles, dt: f64) {
         mass,
         ..
     } = particles;
-    position
-        .par_iter_mut()
-        .zip(velocity.par_iter_mut())
-        .zip(force.par_iter().zip(mass.par_iter()))
-        .for_each(|((x, v), (f, m))| {
-            *v += 0.5 * dt / m * *f;
-            *x += dt * *v;
-        });
+    let update = |((x, v), (f, m)): ((&mut DVec3, &mut DVec3), (&DVec3, &f64))| {
+        *v += 0.5 * dt / m * *f;
+        *x += dt * *v;
+    };
+    if crate::worth_parallel(position.len()) {
+        let rates = force.par_iter().zip(mass.par_iter());
+        position
+            .par_iter_mut()
+            .zip(velocity.par_iter_mut())
+            .zip(rates)
+            .for_each(update);
+    } else {
+        let rates = force.iter().zip(mass.iter());
+        position
+            .iter_mut()
+            .zip(velocity.iter_mut())
+            .zip(rates)
+            .for_each(update);
+    }
 }
 
 /// Second half kick (M.32).
@@ -42,12 +53,18 @@ pub fn kick(particles: &mut Particles, dt: f64) {
         mass,
         ..
     } = particles;
-    velocity
-        .par_iter_mut()
-        .zip(force.par_iter().zip(mass.par_iter()))
-        .for_each(|(v, (f, m))| {
-            *v += 0.5 * dt / m * *f;
-        });
+    let update = |(v, (f, m)): (&mut DVec3, (&DVec3, &f64))| *v += 0.5 * dt / m * *f;
+    if crate::worth_parallel(velocity.len()) {
+        velocity
+            .par_iter_mut()
+            .zip(force.par_iter().zip(mass.par_iter()))
+            .for_each(update);
+    } else {
+        velocity
+            .iter_mut()
+            .zip(force.iter().zip(mass.iter()))
+            .for_each(update);
+    }
 }
 
 /// The first particle field that is NaN or infinite, as `(index, field name)`.

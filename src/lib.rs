@@ -23,3 +23,15 @@ pub mod output;
 pub mod particles;
 pub mod scene;
 pub mod simulation;
+
+/// Below this many items a pass runs on the calling thread: handing a few hundred items to the
+/// rayon pool costs more (a wake-up and a wait, tens of µs) than computing them. Results are the
+/// same either way, since every item is computed independently.
+pub const MIN_PARALLEL_ITEMS: usize = 1024;
+
+/// Whether a pass over `items` items is worth running in parallel.
+#[must_use]
+#[inline]
+pub fn worth_parallel(items: usize) -> bool {
+    items >= MIN_PARALLEL_ITEMS
+}

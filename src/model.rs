@@ -257,7 +257,8 @@ fn initial_particles(
         let spacing = l.spacing_m.unwrap_or(2.0 * l.radius_m);
         let lo = DVec3::from_array(l.min_corner_m);
         let extent = DVec3::from_array(l.max_corner_m) - lo;
-        let counts = [0, 1, 2].map(|axis| lattice_sites(extent[axis], l.radius_m, spacing));
+        let counts =
+            [0, 1, 2].map(|axis| lattice_sites(extent[axis], l.radius_m, spacing, l.jitter_m));
         let mut rng = SplitMix64(l.seed);
         let material = material_index(&l.material);
         for k in 0..counts[2] {
@@ -265,7 +266,7 @@ fn initial_particles(
                 for i in 0..counts[0] {
                     #[allow(clippy::cast_precision_loss)]
                     let site = lo
-                        + DVec3::splat(l.radius_m)
+                        + DVec3::splat(l.radius_m + l.jitter_m)
                         + spacing * DVec3::new(i as f64, j as f64, k as f64);
                     let jitter = if l.jitter_m > 0.0 {
                         DVec3::new(rng.symmetric(), rng.symmetric(), rng.symmetric()) * l.jitter_m

@@ -60,10 +60,15 @@ impl NeighborList {
             return true;
         }
         let limit = 0.25 * self.skin * self.skin;
-        positions
-            .par_iter()
-            .zip(&self.reference_positions)
-            .any(|(x, x0)| (*x - *x0).length_squared() > limit)
+        let moved = |(x, x0): (&DVec3, &DVec3)| (*x - *x0).length_squared() > limit;
+        if crate::worth_parallel(positions.len()) {
+            positions
+                .par_iter()
+                .zip(&self.reference_positions)
+                .any(moved)
+        } else {
+            positions.iter().zip(&self.reference_positions).any(moved)
+        }
     }
 
     /// Rebuilds the list and carries each pair's state over by its id key; pairs that left the

@@ -154,7 +154,7 @@ pub struct ParticleConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LatticeConfig {
-    /// Lower corner of the box [m]; every sphere lies fully inside the box.
+    /// Lower corner of the box [m]; every sphere lies fully inside the box, jitter included.
     pub min_corner_m: [f64; 3],
     /// Upper corner of the box [m].
     pub max_corner_m: [f64; 3],

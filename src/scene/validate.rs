@@ -65,10 +65,11 @@ impl Checker {
 }
 
 /// Number of lattice sites along one axis for an interval of `length`: spheres of `radius` with
-/// centres `spacing` apart, every sphere fully inside.
+/// centres `spacing` apart, every sphere fully inside even when displaced by up to `jitter`
+/// (the first centre is at `radius + jitter` from the lower face).
 #[must_use]
-pub fn lattice_sites(length: f64, radius: f64, spacing: f64) -> u64 {
-    let free = length - 2.0 * radius;
+pub fn lattice_sites(length: f64, radius: f64, spacing: f64, jitter: f64) -> u64 {
+    let free = length - 2.0 * (radius + jitter);
     if free < 0.0 {
         0
     } else {
@@ -287,6 +288,7 @@ fn validate_lattice(c: &mut Checker, scene: &Scene, k: usize) -> u64 {
             l.max_corner_m[axis] - l.min_corner_m[axis],
             l.radius_m,
             spacing,
+            l.jitter_m,
         );
         if n == 0 {
             c.fail(
