@@ -86,27 +86,23 @@ pub fn main() -> ExitCode {
     }
 }
 
-fn load(path: &Path) -> Result<(Model, Simulation), String> {
+fn load(path: &Path) -> Result<Simulation, String> {
     let scene = Scene::load(path).map_err(|e| e.to_string())?;
     let (model, particles) = Model::build(&scene);
-    Ok((model.clone(), Simulation::new(model, particles)))
+    Ok(Simulation::new(model, particles))
 }
 
 fn run_check(path: &Path) -> Result<(), String> {
-    let (model, sim) = load(path)?;
+    let sim = load(path)?;
     let initial = sim.diagnostics();
-    let report = check::report(&model, &sim.particles, initial.max_overlap_ratio);
+    let report = check::report(&sim.model, &sim.particles, initial.max_overlap_ratio);
     say!("{}", report.to_string().trim_end());
     Ok(())
 }
 
 fn run(args: &RunArgs) -> Result<(), String> {
     let path = args.scene.as_deref().ok_or("no scene given")?;
-    let (model, sim) = load(path)?;
-    let mut series = match &model.output.series_csv {
-        Some(file) => Some(SeriesWriter::create(file, args.overwrite).map_err(|e| e.to_string())?),
-        None => None,
-    };
+    let mut sim = load(path)?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = args.threads {
         if n == 0 {
@@ -117,52 +113,58 @@ fn run(args: &RunArgs) -> Result<(), String> {
     let pool = builder
         .build()
         .map_err(|e| format!("cannot start the thread pool: {e}"))?;
+    let threads = pool.current_num_threads();
+    // Output files are opened last, after every check that can refuse the run.
+    let series_path = sim.model.output.series_csv.clone();
+    let mut series = match &series_path {
+        Some(file) => Some(SeriesWriter::create(file, args.overwrite).map_err(|e| e.to_string())?),
+        None => None,
+    };
 
-    let report = check::report(&model, &sim.particles, sim.diagnostics().max_overlap_ratio);
+    let model = &sim.model;
+    let report = check::report(model, &sim.particles, sim.diagnostics().max_overlap_ratio);
+    let title = if model.title.is_empty() {
+        String::new()
+    } else {
+        format!("{} — ", model.title)
+    };
     say!(
-        "am-sim {}: {}{} particles, {} steps of dt = {:.3e} s ({:.4e} s), {} threads",
+        "am-sim {}: {title}{} particles, {} steps of dt = {:.3e} s ({:.4e} s), {threads} threads",
         env!("CARGO_PKG_VERSION"),
-        if model.title.is_empty() {
-            String::new()
-        } else {
-            format!("{} — ", model.title)
-        },
         sim.particles.len(),
         model.steps,
         model.dt,
         model.dt * model.steps as f64,
-        pool.current_num_threads()
     );
     for w in &report.warnings {
         say!("warning: {w}");
     }
 
-    let outcome = pool.install(|| run_loop(sim, &model, series.as_mut(), args.quiet));
-    let (sim, initial, wall) = outcome?;
-    print_summary(&sim, &initial, wall, pool.current_num_threads());
-    if let Some(file) = &model.output.series_csv {
+    let (initial, wall) = pool.install(|| run_loop(&mut sim, series.as_mut(), args.quiet))?;
+    print_summary(&sim, &initial, wall, threads);
+    if let Some(file) = &series_path {
         say!("time series written to {}", file.display());
     }
     Ok(())
 }
 
 /// Steps the simulation to the end, writing the series; stops on a non-finite value before
-/// anything invalid is written.
+/// anything invalid is written. Returns the initial diagnostics and the wall time [s].
 fn run_loop(
-    mut sim: Simulation,
-    model: &Model,
+    sim: &mut Simulation,
     mut series: Option<&mut SeriesWriter>,
     quiet: bool,
-) -> Result<(Simulation, Diagnostics, f64), String> {
+) -> Result<(Diagnostics, f64), String> {
     let start = Instant::now();
     let initial = sim.diagnostics();
     if let Some(s) = series.as_deref_mut() {
         s.write(&initial, 0.0).map_err(|e| e.to_string())?;
     }
+    let (steps, every) = (sim.model.steps, sim.model.output.every_steps);
     let bar = if quiet {
         ProgressBar::hidden()
     } else {
-        ProgressBar::with_draw_target(Some(model.steps), ProgressDrawTarget::stderr())
+        ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr())
     };
     bar.set_style(
         ProgressStyle::with_template(
@@ -170,11 +172,10 @@ fn run_loop(
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let bar_stride = (model.steps / 1000).max(1);
-    for _ in 0..model.steps {
+    let bar_stride = (steps / 1000).max(1);
+    for _ in 0..steps {
         sim.step();
-        let write_row = sim.step % model.output.every_steps == 0 || sim.step == model.steps;
-        if write_row {
+        if sim.step % every == 0 || sim.step == steps {
             if let Some((id, field)) = sim.first_non_finite() {
                 bar.abandon();
                 return Err(format!(
@@ -193,12 +194,7 @@ fn run_loop(
         }
     }
     bar.finish_and_clear();
-    if let Some((id, field)) = sim.first_non_finite() {
-        return Err(format!(
-            "end of run: particle id {id} has a non-finite {field}"
-        ));
-    }
-    Ok((sim, initial, start.elapsed().as_secs_f64()))
+    Ok((initial, start.elapsed().as_secs_f64()))
 }
 
 #[allow(clippy::cast_precision_loss)]

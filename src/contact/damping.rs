@@ -41,15 +41,6 @@ pub fn bond_coefficient(damping_ratio: f64, effective_mass: f64, bond_stiffness:
     2.0 * damping_ratio * (effective_mass * bond_stiffness.max(0.0)).sqrt()
 }
 
-/// Contact damping ratio that gives the restitution coefficient `e` for the linear
-/// spring–dashpot analogue: `ξ = −ln e / √(π² + ln² e)` (M.11). For the Hertz law with
-/// [`contact_coefficient`] the restitution is lower than `e`; use it as a starting point only.
-#[must_use]
-pub fn linear_damping_ratio_for_restitution(restitution: f64) -> f64 {
-    let ln_e = restitution.ln();
-    -ln_e / (std::f64::consts::PI.powi(2) + ln_e * ln_e).sqrt()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -68,11 +59,5 @@ mod tests {
     fn bond_coefficient_is_zero_for_negative_stiffness() {
         assert_eq!(bond_coefficient(1.0, 1e-6, -5.0), 0.0);
         assert!((bond_coefficient(0.5, 4.0, 9.0) - 6.0).abs() < 1e-15);
-    }
-
-    #[test]
-    fn linear_damping_ratio_limits() {
-        assert_eq!(linear_damping_ratio_for_restitution(1.0), 0.0);
-        assert!((linear_damping_ratio_for_restitution(0.5) - 0.215_545).abs() < 1e-6);
     }
 }

@@ -1,0 +1,163 @@
+//! The `am-sim` binary as a user runs it: run, check, refusal to overwrite, bad input.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn am_sim(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_am-sim"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("am-sim runs")
+}
+
+fn scene(name: &str) -> String {
+    format!("{}/scenes/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+#[test]
+fn run_writes_the_series_and_reports_the_bond() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = am_sim(
+        dir.path(),
+        &[&scene("paper_5_1_bond.toml"), "--threads", "1"],
+    );
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", text(&out.stderr));
+    for expected in [
+        "10000 steps",
+        "particle-steps/s",
+        "bonds: 1",
+        "wall time",
+        "energy: mechanical",
+    ] {
+        assert!(
+            stdout.contains(expected),
+            "summary lacks {expected:?}:\n{stdout}"
+        );
+    }
+    let csv = std::fs::read_to_string(dir.path().join("paper_5_1_bond.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        am_sim::output::SERIES_COLUMNS.join(",")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 1001, "t = 0 and every 10 steps of 10000");
+    let last = rows.last().unwrap();
+    assert_eq!(last[0], "10000");
+    assert_eq!(last[8], "1", "one bond at the end");
+    let overlap: f64 = last[9].parse().unwrap();
+    assert!(
+        (overlap / 5e-5 - 1.0).abs() < 5e-3,
+        "final overlap {overlap}"
+    );
+}
+
+#[test]
+fn an_existing_output_is_never_overwritten_silently() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("paper_5_1_bond.csv");
+    std::fs::write(&file, "precious results\n").unwrap();
+    let out = am_sim(dir.path(), &[&scene("paper_5_1_bond.toml")]);
+    assert!(!out.status.success());
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains("already exists") && stderr.contains("--overwrite"),
+        "{stderr}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(&file).unwrap(),
+        "precious results\n"
+    );
+    let again = am_sim(
+        dir.path(),
+        &[&scene("paper_5_1_bond.toml"), "--overwrite", "--quiet"],
+    );
+    assert!(again.status.success(), "{}", text(&again.stderr));
+    assert!(
+        std::fs::read_to_string(&file)
+            .unwrap()
+            .starts_with("step,time_s")
+    );
+}
+
+#[test]
+fn check_prints_the_derived_bond_quantities_and_runs_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = am_sim(dir.path(), &["check", &scene("paper_5_1_bond.toml")]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    for expected in [
+        "v_crit = 2.5744 m/s",
+        "δ_eq = 5.0000e-5 m",
+        "δ_crit = 2.2222e-5 m",
+        "Rayleigh time",
+        "Hertz contact time",
+        "time step: OK",
+    ] {
+        assert!(
+            stdout.contains(expected),
+            "check lacks {expected:?}:\n{stdout}"
+        );
+    }
+    assert!(
+        !dir.path().join("paper_5_1_bond.csv").exists(),
+        "check must not write output"
+    );
+}
+
+#[test]
+fn check_warns_when_dt_cannot_resolve_a_contact() {
+    let dir = tempfile::tempdir().unwrap();
+    let coarse = std::fs::read_to_string(scene("paper_5_1_bond.toml"))
+        .unwrap()
+        .replace("dt_s = 5e-7", "dt_s = 5e-6");
+    std::fs::write(dir.path().join("coarse.toml"), coarse).unwrap();
+    let stdout = text(&am_sim(dir.path(), &["check", "coarse.toml"]).stdout);
+    assert!(
+        stdout.contains("warning:")
+            && stdout.contains("Hertz contact time")
+            && stdout.contains("5.1 steps"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("recommended dt ≤ 5.071e-7 s"), "{stdout}");
+}
+
+#[test]
+fn a_bad_scene_fails_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = std::fs::read_to_string(scene("paper_5_1_bond.toml"))
+        .unwrap()
+        .replace("radius_m = 0.001", "radius_m = -0.001");
+    std::fs::write(dir.path().join("bad.toml"), bad).unwrap();
+    let out = am_sim(dir.path(), &["bad.toml"]);
+    assert!(!out.status.success());
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains("bad.toml")
+            && stderr.contains("particles[0].radius_m = -0.001: must be > 0"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("paper_5_1_bond.csv").exists());
+}
+
+#[test]
+fn usage_errors_are_explained() {
+    let dir = tempfile::tempdir().unwrap();
+    let none = am_sim(dir.path(), &[]);
+    assert!(!none.status.success() && text(&none.stderr).contains("no scene given"));
+    let zero = am_sim(
+        dir.path(),
+        &[&scene("paper_5_1_bond.toml"), "--threads", "0"],
+    );
+    assert!(!zero.status.success() && text(&zero.stderr).contains("--threads 0"));
+    assert!(
+        !dir.path().join("paper_5_1_bond.csv").exists(),
+        "refused before opening the output"
+    );
+}

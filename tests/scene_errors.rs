@@ -1,0 +1,272 @@
+//! Bad scenes are rejected before the run with a message naming the key, the value and the reason;
+//! every shipped scene loads. Each bad case changes one thing in a valid base scene.
+
+use am_sim::scene::Scene;
+
+const BASE: &str = r#"
+[scene]
+version = 1
+[simulation]
+dt_s = 1e-6
+duration_s = 1e-3
+gravity_m_s2 = [0.0, 0.0, -9.81]
+[materials.steel]
+density_kg_m3 = 7800
+youngs_modulus_pa = 2e8
+poisson_ratio = 0.3
+[contact]
+model = "hertz"
+damping_ratio = 0.2
+[bond]
+adhesion_exponent = 1.0
+equilibrium_overlap_m = 1e-6
+damping_ratio = 0.5
+criterion = "always"
+[[particles]]
+position_m = [0.0, 0.0, 2e-5]
+radius_m = 1.5e-5
+material = "steel"
+[[lattice]]
+min_corner_m = [0.0, 0.0, 1e-4]
+max_corner_m = [1e-4, 1e-4, 2e-4]
+radius_m = 1.5e-5
+material = "steel"
+[[walls]]
+point_m = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+material = "steel"
+[output]
+every_steps = 10
+"#;
+
+/// `(replace this, with this, every fragment the message must contain)`.
+const CASES: &[(&str, &str, &[&str])] = &[
+    // Syntax and types: the parser's message with the key path and the line.
+    ("dt_s = 1e-6", "dt_s = 1e-6 +", &["line 5"]),
+    (
+        "radius_m = 1.5e-5\nmaterial",
+        "radius_m = \"15 um\"\nmaterial",
+        &[
+            "particles[0].radius_m",
+            "invalid type: string \"15 um\"",
+            "expected f64",
+        ],
+    ),
+    (
+        "dt_s = 1e-6",
+        "dt_s = [1e-6]",
+        &["simulation.dt_s", "invalid type"],
+    ),
+    (
+        "duration_s = 1e-3",
+        "",
+        &["simulation", "missing field `duration_s`"],
+    ),
+    // Unknown keys, in every table, and typos in every enum.
+    (
+        "damping_ratio = 0.2",
+        "damping_ratio = 0.2\ndampng = 1",
+        &["contact.dampng", "unknown field `dampng`"],
+    ),
+    (
+        "poisson_ratio = 0.3",
+        "poisson_ratio = 0.3\nposson = 0.3",
+        &["materials.steel.posson", "unknown field"],
+    ),
+    ("[output]", "[outptu]", &["unknown field `outptu`"]),
+    (
+        "model = \"hertz\"",
+        "model = \"hooke\"",
+        &[
+            "contact.model",
+            "unknown variant `hooke`",
+            "expected `hertz`",
+        ],
+    ),
+    (
+        "criterion = \"always\"",
+        "criterion = \"melted\"",
+        &[
+            "bond.criterion",
+            "unknown variant `melted`",
+            "`always` or `never`",
+        ],
+    ),
+    (
+        "criterion = \"always\"",
+        "criterion = \"always\"\nk_adh = 1e5",
+        &["bond.k_adh", "unknown field"],
+    ),
+    // Values out of range: key = value: reason.
+    (
+        "dt_s = 1e-6",
+        "dt_s = 0.0",
+        &["simulation.dt_s = 0: must be > 0"],
+    ),
+    (
+        "dt_s = 1e-6",
+        "dt_s = -1e-6",
+        &["simulation.dt_s = -0.000001: must be > 0"],
+    ),
+    (
+        "duration_s = 1e-3",
+        "duration_s = 1e9",
+        &[
+            "simulation.duration_s = 1000000000",
+            "steps",
+            "check the units",
+        ],
+    ),
+    (
+        "radius_m = 1.5e-5\nmaterial",
+        "radius_m = -1.5e-5\nmaterial",
+        &["particles[0].radius_m = -0.000015: must be > 0"],
+    ),
+    (
+        "poisson_ratio = 0.3",
+        "poisson_ratio = 0.5",
+        &["materials.steel.poisson_ratio = 0.5: must be in (-1, 0.5)"],
+    ),
+    (
+        "youngs_modulus_pa = 2e8",
+        "youngs_modulus_pa = nan",
+        &["materials.steel.youngs_modulus_pa = NaN: must be a finite number"],
+    ),
+    (
+        "damping_ratio = 0.2",
+        "damping_ratio = -0.2",
+        &["contact.damping_ratio = -0.2: must be ≥ 0"],
+    ),
+    (
+        "adhesion_exponent = 1.0",
+        "adhesion_exponent = 1.5",
+        &[
+            "bond.adhesion_exponent = 1.5",
+            "below the Hertz exponent 3/2",
+            "eq. 9",
+        ],
+    ),
+    (
+        "adhesion_exponent = 1.0",
+        "adhesion_exponent = -0.1",
+        &["bond.adhesion_exponent = -0.1: must be in [0, 1.5)"],
+    ),
+    (
+        "equilibrium_overlap_m = 1e-6",
+        "equilibrium_overlap_m = 1e-6\nadhesion_stiffness = 1e5",
+        &["bond.adhesion_stiffness", "exactly one"],
+    ),
+    (
+        "equilibrium_overlap_m = 1e-6",
+        "",
+        &["bond = neither adhesion_stiffness nor equilibrium_overlap_m"],
+    ),
+    (
+        "equilibrium_overlap_m = 1e-6",
+        "adhesion_stiffness = 1e5\nreference_radius_m = 1e-5",
+        &["bond.reference_radius_m = 0.00001: only used with bond.equilibrium_overlap_m"],
+    ),
+    (
+        "radius_m = 1.5e-5\nmaterial",
+        "radius_m = 2e-5\nmaterial",
+        &["bond.reference_radius_m = missing", "radii differ"],
+    ),
+    (
+        "material = \"steel\"\n[[lattice]]",
+        "material = \"inconel\"\n[[lattice]]",
+        &[
+            "particles[0].material = \"inconel\": no such material",
+            "[\"steel\"]",
+        ],
+    ),
+    (
+        "normal = [0.0, 0.0, 1.0]",
+        "normal = [0.0, 0.0, 0.0]",
+        &["walls[0].normal", "zero vector"],
+    ),
+    (
+        "max_corner_m = [1e-4, 1e-4, 2e-4]",
+        "max_corner_m = [1e-4, 1e-4, 1.1e-4]",
+        &[
+            "lattice[0].max_corner_m",
+            "thinner than one sphere diameter along axis z",
+        ],
+    ),
+    (
+        "radius_m = 1.5e-5\nmaterial = \"steel\"\n[[walls]]",
+        "radius_m = 1.5e-5\nspacing_m = 2e-5\nmaterial = \"steel\"\n[[walls]]",
+        &["lattice[0].spacing_m = 0.00002: must be ≥ 2 × radius_m"],
+    ),
+    (
+        "radius_m = 1.5e-5\nmaterial = \"steel\"\n[[walls]]",
+        "radius_m = 1.5e-5\nspacing_m = 3.2e-5\njitter_m = 2e-6\nmaterial = \"steel\"\n[[walls]]",
+        &["lattice[0].jitter_m = 0.000002", "cannot overlap"],
+    ),
+    (
+        "every_steps = 10",
+        "every_steps = 0",
+        &["output.every_steps = 0: must be ≥ 1"],
+    ),
+    (
+        "version = 1",
+        "version = 2",
+        &["scene.version = 2", "version 1"],
+    ),
+];
+
+#[test]
+fn the_base_scene_is_valid() {
+    Scene::from_toml(BASE).expect("base scene");
+}
+
+#[test]
+fn every_bad_scene_is_rejected_with_key_value_and_reason() {
+    for (from, to, fragments) in CASES {
+        assert!(BASE.contains(from), "case does not apply: {from:?}");
+        let text = BASE.replacen(from, to, 1);
+        let message = match Scene::from_toml(&text) {
+            Ok(_) => panic!("accepted a bad scene ({from:?} → {to:?})"),
+            Err(e) => e.to_string(),
+        };
+        for fragment in *fragments {
+            assert!(
+                message.contains(fragment),
+                "({from:?} → {to:?}): message lacks {fragment:?}:\n{message}"
+            );
+        }
+    }
+}
+
+#[test]
+fn all_violations_are_reported_at_once() {
+    let text = BASE.replacen("dt_s = 1e-6", "dt_s = -1.0", 1).replacen(
+        "poisson_ratio = 0.3",
+        "poisson_ratio = 0.7",
+        1,
+    );
+    let err = Scene::from_toml(&text).unwrap_err();
+    let keys: Vec<&str> = err.violations().iter().map(|v| v.key.as_str()).collect();
+    assert_eq!(keys, ["simulation.dt_s", "materials.steel.poisson_ratio"]);
+}
+
+#[test]
+fn every_shipped_scene_loads() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    let mut count = 0;
+    for entry in std::fs::read_dir(dir).expect("scenes/") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            count += 1;
+        }
+    }
+    assert!(count >= 3, "found {count} scenes");
+}
+
+#[test]
+fn a_missing_file_names_the_file() {
+    let err = Scene::load(std::path::Path::new("no/such/scene.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("no/such/scene.toml"), "{err}");
+}
