@@ -197,10 +197,14 @@ pub fn report(model: &Model, particles: &Particles, initial_overlap_ratio: f64) 
         ));
     }
     for row in &pairs {
-        let label = format!(
-            "{}–{} (r = {:.3e}, {:.3e} m)",
-            row.materials.0, row.materials.1, row.radii.0, row.radii.1
-        );
+        let label = if row.radii.1.is_finite() {
+            format!(
+                "{}–{} (r = {:.3e}, {:.3e} m)",
+                row.materials.0, row.materials.1, row.radii.0, row.radii.1
+            )
+        } else {
+            format!("{}–wall (r = {:.3e} m)", row.materials.0, row.radii.0)
+        };
         if row.contact_time.is_finite() {
             recommended = recommended.min(row.contact_time / RECOMMENDED_STEPS_PER_CONTACT);
             if dt > row.contact_time / MIN_STEPS_PER_CONTACT {

@@ -102,7 +102,6 @@ fn run_check(path: &Path) -> Result<(), String> {
 
 fn run(args: &RunArgs) -> Result<(), String> {
     let path = args.scene.as_deref().ok_or("no scene given")?;
-    let mut sim = load(path)?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = args.threads {
         if n == 0 {
@@ -114,6 +113,8 @@ fn run(args: &RunArgs) -> Result<(), String> {
         .build()
         .map_err(|e| format!("cannot start the thread pool: {e}"))?;
     let threads = pool.current_num_threads();
+    // Set-up (neighbour list, first forces) already runs on the requested threads.
+    let mut sim = pool.install(|| load(path))?;
     // Output files are opened last, after every check that can refuse the run.
     let series_path = sim.model.output.series_csv.clone();
     let mut series = match &series_path {

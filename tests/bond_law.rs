@@ -333,3 +333,10 @@ fn guarded_bond_damping_gives_no_nan_below_critical_overlap() {
         0.0
     );
 }
+
+#[test]
+fn strength_of_a_constant_adhesion_is_its_stiffness() {
+    // α = 0: the attraction k_adh − F_hertz(δ) is largest as δ → 0⁺, where it is k_adh.
+    let b = params(0.0, 0.3, 0.0, 0.0).bond.unwrap();
+    assert_eq!(b.strength(E_STAR, R_STAR), 0.3);
+}

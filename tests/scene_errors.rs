@@ -189,7 +189,7 @@ const CASES: &[(&str, &str, &[&str])] = &[
         "max_corner_m = [1e-4, 1e-4, 1.1e-4]",
         &[
             "lattice[0].max_corner_m",
-            "thinner than one sphere diameter along axis z",
+            "thinner than one sphere diameter plus twice jitter_m along axis z",
         ],
     ),
     (
@@ -235,6 +235,37 @@ fn every_bad_scene_is_rejected_with_key_value_and_reason() {
             );
         }
     }
+}
+
+#[test]
+fn a_jitter_at_exactly_its_limit_is_accepted() {
+    // (spacing − 2r)/2 = (4.4e-5 − 3e-5)/2 = 7e-6 up to round-off.
+    let text = BASE.replacen(
+        "radius_m = 1.5e-5\nmaterial = \"steel\"\n[[walls]]",
+        "radius_m = 1.5e-5\nspacing_m = 4.4e-5\njitter_m = 7e-6\nmaterial = \"steel\"\n[[walls]]",
+        1,
+    );
+    let text = text.replace(
+        "max_corner_m = [1e-4, 1e-4, 2e-4]",
+        "max_corner_m = [2e-4, 2e-4, 2e-4]",
+    );
+    Scene::from_toml(&text).expect("jitter at the limit");
+}
+
+#[test]
+fn a_bad_radius_is_reported_once_on_its_own_key() {
+    let text = BASE.replacen(
+        "radius_m = 1.5e-5\nmaterial",
+        "radius_m = -1.5e-5\nmaterial",
+        1,
+    );
+    let keys: Vec<String> = Scene::from_toml(&text)
+        .unwrap_err()
+        .violations()
+        .iter()
+        .map(|v| v.key.clone())
+        .collect();
+    assert_eq!(keys, ["particles[0].radius_m"]);
 }
 
 #[test]

@@ -60,7 +60,8 @@ impl BondParams {
     /// Tangent stiffness of the bonded branch, paper eq. 24 (M.13) [N/m]:
     ///
     /// ```text
-    /// k* = −dF_el/dδ (of the attractive force) = 2 E* √r* δ^{1/2} − α_adh k_adh δ^{α_adh − 1}
+    /// k* = dF_el/dδ (F_el positive when repulsive; the paper writes −d/dδ of the attraction)
+    ///    = 2 E* √r* δ^{1/2} − α_adh k_adh δ^{α_adh − 1}
     /// ```
     ///
     /// Negative for `δ < δ_crit`. The α_adh = 0 case has no second term (it would be `0 · δ^{−1}`).
@@ -170,7 +171,10 @@ impl BondParams {
     #[must_use]
     pub fn strength(&self, effective_modulus: f64, effective_radius: f64) -> f64 {
         let crit = self.critical_overlap(effective_modulus, effective_radius);
-        (-self.elastic_force(effective_modulus, effective_radius, crit)).max(0.0)
+        // Written out rather than through `elastic_force`, which is 0 at δ = 0: for α_adh = 0,
+        // δ_crit = 0 and the strength is the limit δ → 0⁺, i.e. k_adh (powf(0, 0) = 1).
+        let attraction = self.adhesion_stiffness * crit.powf(self.adhesion_exponent);
+        (attraction - hertz::elastic_force(effective_modulus, effective_radius, crit)).max(0.0)
     }
 
     /// Angular frequency of small oscillations of a bond about δ_eq: `ω = √(k*(δ_eq)/m*)` [rad/s].

@@ -13,7 +13,7 @@ use super::hertz;
 /// ```
 ///
 /// The paper prints `δ^{1/4}` *under* the square root, which is not dimensionally consistent
-/// (it would give N·s/m^{7/8}); the form above is the one that matches eq. 23 and the Tsuji-type
+/// (it would give N·s/m^{9/8}); the form above is the one that matches eq. 23 and the Tsuji-type
 /// damping used by LIGGGHTS and LAMMPS, and it makes the restitution coefficient independent of the
 /// impact speed (tested in `tests/hertz_impact.rs`).
 #[must_use]

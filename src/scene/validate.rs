@@ -149,10 +149,12 @@ pub fn validate(scene: &Scene) -> Vec<Violation> {
         c.material(scene, &key("material"), &p.material);
         total += 1;
     }
+    let before_lattices = c.violations.len();
     for k in 0..scene.lattice.len() {
         total = total.saturating_add(validate_lattice(&mut c, scene, k));
     }
-    if total == 0 {
+    // A lattice with a bad key counts no sites: do not add a misleading "no particles" on top.
+    if total == 0 && c.violations.len() == before_lattices {
         c.fail("particles", "[]", "the scene has no particles: add [[particles]] or a [[lattice]] that fits at least one sphere");
     }
     if total > MAX_PARTICLES {
@@ -221,7 +223,9 @@ fn validate_bond(c: &mut Checker, scene: &Scene, bond: &super::BondConfig) {
         ),
         (None, Some(_)) => {
             let radii = all_radii(scene);
-            if radii.iter().any(|r| *r != radii[0]) {
+            // Bad radii are reported on their own keys; compare only the valid ones.
+            let valid = radii.iter().all(|r| r.is_finite() && *r > 0.0);
+            if valid && radii.iter().any(|r| *r != radii[0]) {
                 let (lo, hi) = radii.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), r| {
                     (lo.min(*r), hi.max(*r))
                 });
@@ -269,7 +273,8 @@ fn validate_lattice(c: &mut Checker, scene: &Scene, k: usize) -> u64 {
             );
         }
     }
-    if l.jitter_m > 0.0 && l.jitter_m > (spacing - 2.0 * l.radius_m) / 2.0 {
+    // Relative tolerance: a jitter of exactly the documented limit must pass despite round-off.
+    if l.jitter_m > 0.0 && l.jitter_m > (spacing - 2.0 * l.radius_m) / 2.0 * (1.0 + 1e-9) {
         c.fail(
             key("jitter_m"),
             l.jitter_m,
@@ -295,7 +300,7 @@ fn validate_lattice(c: &mut Checker, scene: &Scene, k: usize) -> u64 {
                 key("max_corner_m"),
                 format!("{:?}", l.max_corner_m),
                 format!(
-                    "the box is thinner than one sphere diameter along axis {}",
+                    "the box is thinner than one sphere diameter plus twice jitter_m along axis {}",
                     ["x", "y", "z"][axis]
                 ),
             );
