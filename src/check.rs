@@ -9,6 +9,7 @@ use std::fmt::{self, Write as _};
 use crate::contact::{BondParams, hertz};
 use crate::model::Model;
 use crate::particles::Particles;
+use crate::simulation::Simulation;
 
 /// Fewer steps than this per Hertz contact or bond oscillation resolve it poorly (warning).
 pub const MIN_STEPS_PER_CONTACT: f64 = 20.0;
@@ -74,6 +75,8 @@ pub struct CheckReport {
     pub recommended_dt: f64,
     /// Warnings (empty when dt is fine).
     pub warnings: Vec<String>,
+    /// Thermal time scales, for scenes with `[thermal]`.
+    pub thermal: Option<ThermalCheck>,
 }
 
 /// Smallest and largest radius of each material present (None for absent materials).
@@ -122,9 +125,25 @@ pub fn expected_impact_speed(model: &Model, particles: &Particles) -> (f64, &'st
     }
 }
 
-/// Builds the report.
+/// Thermal part of the report.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThermalCheck {
+    /// Smallest thermal time constant `min C_i/G_i` at t = 0 [s] (M.49).
+    pub time_constant: f64,
+    /// Substeps per mechanical step this gives (M.49).
+    pub substeps: f64,
+    /// Laser ray-casting cell [m] and the smallest radius [m], with a laser.
+    pub raster: Option<(f64, f64)>,
+}
+
+/// Substeps beyond this many per step make a run slow: `check` warns.
+pub const MANY_SUBSTEPS: f64 = 100.0;
+
+/// Builds the report for a simulation set up at t = 0.
 #[must_use]
-pub fn report(model: &Model, particles: &Particles, initial_overlap_ratio: f64) -> CheckReport {
+pub fn report(sim: &Simulation) -> CheckReport {
+    let (model, particles) = (&sim.model, &sim.particles);
+    let initial_overlap_ratio = sim.diagnostics().max_overlap_ratio;
     let ranges = radius_range(model, particles);
     let (speed, source) = expected_impact_speed(model, particles);
     let mass = |material: usize, r: f64| {
@@ -229,7 +248,39 @@ pub fn report(model: &Model, particles: &Particles, initial_overlap_ratio: f64) 
             }
         }
     }
+    let smallest_radius = particles
+        .radius
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min);
+    let thermal = sim.smallest_thermal_time_constant().map(|tau| {
+        let theta = model.thermal.as_ref().map_or(1.0, |t| t.substep_fraction);
+        ThermalCheck {
+            time_constant: tau,
+            substeps: (dt / (theta * tau)).ceil().max(1.0),
+            raster: model
+                .laser
+                .as_ref()
+                .map(|l| (l.raster_cell, smallest_radius)),
+        }
+    });
+    if let Some(t) = &thermal {
+        if t.substeps > MANY_SUBSTEPS {
+            warnings.push(format!(
+                "the smallest thermal time constant {:.3e} s needs {:.0} thermal substeps per step: stable, but slow",
+                t.time_constant, t.substeps
+            ));
+        }
+        if let Some((cell, radius)) = t.raster {
+            if cell > radius / 3.0 {
+                warnings.push(format!(
+                    "laser.raster_cell_m = {cell:.3e} m is coarser than a third of the smallest radius {radius:.3e} m: absorbed powers are rough"
+                ));
+            }
+        }
+    }
     CheckReport {
+        thermal,
         dt,
         steps: model.steps,
         particles: particles.len(),
@@ -345,6 +396,18 @@ impl fmt::Display for CheckReport {
             "recommended dt ≤ {:.3e} s (≥ {RECOMMENDED_STEPS_PER_CONTACT} steps per contact and per bond oscillation, ≤ {MAX_RAYLEIGH_FRACTION} × Rayleigh time)",
             self.recommended_dt
         )?;
+        if let Some(t) = &self.thermal {
+            writeln!(
+                f,
+                "smallest thermal time constant at t = 0: {:.4e} s (dt = {:.3e} of it); thermal substeps per step: {:.0}",
+                t.time_constant,
+                self.dt / t.time_constant,
+                t.substeps
+            )?;
+            if let Some((cell, _)) = t.raster {
+                writeln!(f, "laser ray-casting cell: {cell:.3e} m")?;
+            }
+        }
         if self.warnings.is_empty() {
             writeln!(f, "time step: OK")?;
         } else {

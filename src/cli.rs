@@ -94,8 +94,7 @@ fn load(path: &Path) -> Result<Simulation, String> {
 
 fn run_check(path: &Path) -> Result<(), String> {
     let sim = load(path)?;
-    let initial = sim.diagnostics();
-    let report = check::report(&sim.model, &sim.particles, initial.max_overlap_ratio);
+    let report = check::report(&sim);
     say!("{}", report.to_string().trim_end());
     Ok(())
 }
@@ -118,12 +117,15 @@ fn run(args: &RunArgs) -> Result<(), String> {
     // Output files are opened last, after every check that can refuse the run.
     let series_path = sim.model.output.series_csv.clone();
     let mut series = match &series_path {
-        Some(file) => Some(SeriesWriter::create(file, args.overwrite).map_err(|e| e.to_string())?),
+        Some(file) => Some(
+            SeriesWriter::create(file, args.overwrite, sim.thermal.is_some())
+                .map_err(|e| e.to_string())?,
+        ),
         None => None,
     };
 
     let model = &sim.model;
-    let report = check::report(model, &sim.particles, sim.diagnostics().max_overlap_ratio);
+    let report = check::report(&sim);
     let title = if model.title.is_empty() {
         String::new()
     } else {
@@ -237,4 +239,24 @@ fn print_summary(sim: &Simulation, initial: &Diagnostics, wall: f64, threads: us
         100.0 * d.max_overlap_ratio,
         d.kinetic_energy
     );
+    if let (Some(t0), Some(t1)) = (initial.thermal, d.thermal) {
+        let stored = t1.enthalpy - t0.enthalpy;
+        let supplied = t1.laser_energy + t1.boundary_energy;
+        let scale = t1
+            .laser_energy
+            .abs()
+            .max(t1.boundary_energy.abs())
+            .max(t0.enthalpy.abs() * f64::EPSILON);
+        say!(
+            "  thermal: max temperature {:.1} K, {} particles melted; laser absorbed {:.4e} J, boundaries {:+.4e} J",
+            t1.max_temperature,
+            t1.melted,
+            t1.laser_energy,
+            t1.boundary_energy
+        );
+        say!(
+            "  heat balance: stored {stored:+.6e} J vs supplied {supplied:+.6e} J (residual {:.2e} relative)",
+            (stored - supplied).abs() / scale
+        );
+    }
 }

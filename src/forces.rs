@@ -49,6 +49,7 @@ pub fn pair_pass(
     list: &NeighborList,
     states: &mut [BondState],
     results: &mut [PairResult],
+    melted: Option<&[bool]>,
 ) {
     let evaluate = |((&[a, b], state), result): ((&[u32; 2], &mut BondState), &mut PairResult)| {
         let (a, b) = (a as usize, b as usize);
@@ -68,7 +69,8 @@ pub fn pair_pass(
             effective_mass: hertz::effective_mass(particles.mass[a], particles.mass[b]),
         };
         let params = model.pair_params(particles.material[a], particles.material[b]);
-        let criterion = model.bond_criterion.holds(a, b);
+        let (melted_a, melted_b) = melted.map_or((false, false), |m| (m[a], m[b]));
+        let criterion = model.bond_criterion.holds(melted_a, melted_b);
         let outcome = contact::normal_force(params, &kinematics, *state, criterion);
         *state = outcome.state;
         *result = PairResult {

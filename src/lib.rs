@@ -17,12 +17,14 @@ pub mod cli;
 pub mod contact;
 pub mod forces;
 pub mod integrate;
+pub mod laser;
 pub mod model;
 pub mod neighbor;
 pub mod output;
 pub mod particles;
 pub mod scene;
 pub mod simulation;
+pub mod thermal;
 
 /// Below this many items a pass runs on the calling thread: handing a few hundred items to the
 /// rayon pool costs more (a wake-up and a wait, tens of µs) than computing them. Results are the

@@ -4,11 +4,16 @@
 
 use std::path::PathBuf;
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 use crate::contact::{BondParams, NormalParams, bond, hertz};
+use crate::laser::{self, Laser};
 use crate::particles::{ParticleInit, Particles};
-use crate::scene::{CriterionConfig, Scene, validate::lattice_sites};
+use crate::scene::{
+    Axis, ConductionConfig, CriterionConfig, LaserConfig, MeltingRule, PathConfig, Scene,
+    ThermalConfig, validate::lattice_sites,
+};
+use crate::thermal::{ConductionModel, ThermalMaterial, ThermalModel};
 
 /// Elastic data of one material (SI).
 #[derive(Debug, Clone, PartialEq)]
@@ -35,24 +40,33 @@ pub struct Wall {
 }
 
 /// The bond criterion of paper eq. 25: whether a pair may switch to the bonded branch. Evaluated
-/// outside the force law, which receives only its `bool`, so new criteria (melting temperature)
-/// plug in here without touching `contact`.
+/// outside the force law, which receives only its `bool`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BondCriterion {
     /// Every pair, always.
     Always,
     /// No pair, ever.
     Never,
+    /// The particles have reached their melting points (latched per particle, M.53): both of
+    /// them, or with `either`, at least one.
+    Melting {
+        /// One melted particle suffices.
+        either: bool,
+    },
 }
 
 impl BondCriterion {
-    /// Whether the criterion holds for the pair `(i, j)`. The arguments are symmetric, so the
-    /// answer cannot depend on which particle is called i.
+    /// Whether the criterion holds for a pair whose particles have (`melted_i`, `melted_j`)
+    /// reached their melting points. Symmetric in its arguments, so the answer cannot depend on
+    /// which particle is called i.
     #[must_use]
-    pub fn holds(self, _i: usize, _j: usize) -> bool {
+    #[inline]
+    pub fn holds(self, melted_i: bool, melted_j: bool) -> bool {
         match self {
             Self::Always => true,
             Self::Never => false,
+            Self::Melting { either: false } => melted_i && melted_j,
+            Self::Melting { either: true } => melted_i || melted_j,
         }
     }
 }
@@ -89,6 +103,10 @@ pub struct Model {
     pub expected_impact_speed: Option<f64>,
     /// Output settings.
     pub output: OutputSettings,
+    /// Thermal parameters, if the scene has `[thermal]`.
+    pub thermal: Option<ThermalModel>,
+    /// The laser, if the scene has `[laser]`.
+    pub laser: Option<Laser>,
     /// `[a * n + b]`: normal-law parameters of material pair (a, b); symmetric.
     pair_params: Vec<NormalParams>,
     /// `[w * n + a]`: particle (material a) against wall w; never bonded.
@@ -215,10 +233,15 @@ impl Model {
             skin: sim.skin_m.unwrap_or(0.2 * smallest_radius),
             materials,
             walls,
-            bond_criterion: match scene.bond.as_ref().map(|b| b.criterion) {
-                Some(CriterionConfig::Always) => BondCriterion::Always,
-                Some(CriterionConfig::Never) | None => BondCriterion::Never,
+            bond_criterion: match scene.bond.as_ref().map(|b| (b.criterion, b.melting_rule)) {
+                Some((CriterionConfig::Always, _)) => BondCriterion::Always,
+                Some((CriterionConfig::Never, _)) | None => BondCriterion::Never,
+                Some((CriterionConfig::Melting, rule)) => BondCriterion::Melting {
+                    either: rule == Some(MeltingRule::Either),
+                },
             },
+            thermal: scene.thermal.as_ref().map(|t| thermal_model(scene, t)),
+            laser: scene.laser.as_ref().map(|l| laser(l, smallest_radius)),
             expected_impact_speed: sim.expected_impact_speed_m_s,
             output: OutputSettings {
                 series_csv: output
@@ -232,6 +255,97 @@ impl Model {
             wall_params,
         };
         (model, particles)
+    }
+}
+
+fn thermal_model(scene: &Scene, config: &ThermalConfig) -> ThermalModel {
+    ThermalModel {
+        // BTreeMap order, the same as `Model::materials`.
+        materials: scene
+            .materials
+            .values()
+            .map(|m| ThermalMaterial {
+                specific_heat: m.specific_heat_j_kg_k.unwrap_or(0.0),
+                conductivity: m.thermal_conductivity_w_m_k.unwrap_or(0.0),
+                melting_point: m.melting_point_k.unwrap_or(f64::INFINITY),
+                latent_heat: m.latent_heat_j_kg.unwrap_or(0.0),
+                emissivity: m.emissivity.unwrap_or(0.0),
+                absorptivity: m.absorptivity.unwrap_or(0.0),
+            })
+            .collect(),
+        conduction: match config.conduction {
+            ConductionConfig::BatchelorObrien => ConductionModel::BatchelorObrien,
+            ConductionConfig::ThermalPipe => ConductionModel::ThermalPipe,
+            ConductionConfig::None => ConductionModel::None,
+        },
+        convection: config
+            .convection
+            .as_ref()
+            .map(|c| (c.heat_transfer_coefficient_w_m2_k, c.gas_temperature_k)),
+        radiation: config
+            .radiation
+            .as_ref()
+            .map(|r| r.environment_temperature_k),
+        wall_temperatures: scene.walls.iter().map(|w| w.temperature_k).collect(),
+        initial_temperature: config.initial_temperature_k,
+        // θ = 1/2: half the largest monotone substep, a margin for conductances and radiation
+        // that grow within a step.
+        substep_fraction: config.substep_fraction.unwrap_or(0.5),
+    }
+}
+
+fn laser(config: &LaserConfig, smallest_radius: f64) -> Laser {
+    let start = config.start_time_s;
+    let path = match &config.path {
+        PathConfig::Polyline {
+            points_m,
+            speed_m_s,
+        } => {
+            let points: Vec<DVec2> = points_m.iter().map(|p| DVec2::from_array(*p)).collect();
+            laser::polyline(&points, *speed_m_s, start)
+        }
+        PathConfig::Hatch {
+            start_m,
+            track_length_m,
+            hatch_spacing_m,
+            tracks,
+            speed_m_s,
+            direction,
+            jump_time_s,
+        } => laser::Hatch {
+            origin: DVec2::from_array(*start_m),
+            length: *track_length_m,
+            spacing: *hatch_spacing_m,
+            tracks: *tracks,
+            along_x: *direction == Axis::X,
+            speed: *speed_m_s,
+            jump_time: *jump_time_s,
+        }
+        .segments(start),
+        PathConfig::Stationary {
+            position_m,
+            duration_s,
+        } => {
+            let at = DVec2::from_array(*position_m);
+            vec![laser::Segment {
+                from: at,
+                to: at,
+                start,
+                duration: *duration_s,
+                on: true,
+            }]
+        }
+    };
+    Laser {
+        power: config.power_w,
+        spot_radius: config.spot_radius_m,
+        // A tenth of the smallest radius: ~300 rays per disk put the visible fraction of a
+        // half-shadowed sphere within 0.1 % (tests/laser.rs; a fifth gave 4 %), but never more
+        // than 1024 rays across the ±3w window.
+        raster_cell: config
+            .raster_cell_m
+            .unwrap_or_else(|| (smallest_radius / 10.0).max(6.0 * config.spot_radius_m / 1024.0)),
+        path,
     }
 }
 

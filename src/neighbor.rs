@@ -22,6 +22,8 @@ use crate::contact::BondState;
 pub struct Incidence {
     /// Index into `NeighborList::pairs`.
     pub pair: u32,
+    /// The other particle of the pair (saves a lookup in `pairs` in the per-particle passes).
+    pub other: u32,
     /// True when the particle is the pair's first member (the pair result is the force on it);
     /// false when it is the second (it receives the opposite force).
     pub first: bool,
@@ -134,15 +136,16 @@ impl NeighborList {
         self.incidence = vec![
             Incidence {
                 pair: 0,
+                other: 0,
                 first: true
             };
             self.pairs.len() * 2
         ];
         for (p, [a, b]) in self.pairs.iter().enumerate() {
             let pair = u32::try_from(p).expect("fewer than 2^32 pairs");
-            for (particle, first) in [(*a, true), (*b, false)] {
+            for (particle, other, first) in [(*a, *b, true), (*b, *a, false)] {
                 let slot = &mut fill[particle as usize];
-                self.incidence[*slot as usize] = Incidence { pair, first };
+                self.incidence[*slot as usize] = Incidence { pair, other, first };
                 *slot += 1;
             }
         }

@@ -39,11 +39,22 @@ pub const SERIES_COLUMNS: [&str; 12] = [
     "wall_time_s",
 ];
 
+/// Columns added for scenes with `[thermal]` (and only for them).
+pub const THERMAL_COLUMNS: [&str; 6] = [
+    "enthalpy_j",
+    "laser_energy_j",
+    "boundary_heat_j",
+    "max_temperature_k",
+    "melted",
+    "thermal_substeps",
+];
+
 /// Writes the time series, flushing every row so a killed run keeps what it wrote.
 #[derive(Debug)]
 pub struct SeriesWriter {
     path: PathBuf,
     out: BufWriter<File>,
+    thermal: bool,
 }
 
 impl SeriesWriter {
@@ -51,7 +62,8 @@ impl SeriesWriter {
     ///
     /// # Errors
     /// [`OutputError::Exists`] if the file exists and `overwrite` is false; I/O errors.
-    pub fn create(path: &Path, overwrite: bool) -> Result<Self, OutputError> {
+    /// `thermal` adds the [`THERMAL_COLUMNS`].
+    pub fn create(path: &Path, overwrite: bool, thermal: bool) -> Result<Self, OutputError> {
         let io = |source| OutputError::Io {
             path: path.to_owned(),
             source,
@@ -71,8 +83,13 @@ impl SeriesWriter {
         let mut writer = Self {
             path: path.to_owned(),
             out: BufWriter::new(file),
+            thermal,
         };
-        writer.line(&SERIES_COLUMNS.join(","))?;
+        let mut header = SERIES_COLUMNS.join(",");
+        if thermal {
+            header = format!("{header},{}", THERMAL_COLUMNS.join(","));
+        }
+        writer.line(&header)?;
         Ok(writer)
     }
 
@@ -81,7 +98,7 @@ impl SeriesWriter {
     /// # Errors
     /// I/O errors.
     pub fn write(&mut self, d: &Diagnostics, wall_time_s: f64) -> Result<(), OutputError> {
-        let row = format!(
+        let mut row = format!(
             "{},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{},{},{},{:.9e},{:.6e},{:.3}",
             d.step,
             d.time,
@@ -96,6 +113,18 @@ impl SeriesWriter {
             d.max_overlap_ratio,
             wall_time_s
         );
+        if self.thermal {
+            let t = d.thermal.unwrap_or_default();
+            row += &format!(
+                ",{:.9e},{:.9e},{:.9e},{:.6e},{},{}",
+                t.enthalpy,
+                t.laser_energy,
+                t.boundary_energy,
+                t.max_temperature,
+                t.melted,
+                t.substeps
+            );
+        }
         self.line(&row)
     }
 

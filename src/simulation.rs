@@ -6,14 +6,19 @@
 //!    their pairs by id.
 //! 3. Pair pass: normal forces of every pair, bond formation and breakage (paper eq. 25).
 //! 4. Gather: per-particle sum of pair forces in fixed order, plus gravity and walls.
-//! 5. Second half kick (M.32).
+//! 5. With `[thermal]`: contact conductances from this step's overlaps, laser absorption with the
+//!    beam at mid-step, then the temperatures over dt (M.49); melted flags latch. The bond
+//!    criterion of the next step's pair pass reads them.
+//! 6. Second half kick (M.32).
 
 use crate::contact::{BondState, hertz};
 use crate::forces::{self, PairResult};
 use crate::integrate;
+use crate::laser;
 use crate::model::Model;
 use crate::neighbor::NeighborList;
 use crate::particles::Particles;
+use crate::thermal::{self, ThermalState};
 
 /// A running simulation.
 #[derive(Debug, Clone)]
@@ -25,6 +30,10 @@ pub struct Simulation {
     neighbors: NeighborList,
     bond_states: Vec<BondState>,
     pair_results: Vec<PairResult>,
+    /// Temperatures and heat bookkeeping, if the scene has `[thermal]` (otherwise nothing is
+    /// allocated and no thermal pass runs).
+    pub thermal: Option<ThermalState>,
+    laser_snapshot: laser::Snapshot,
     /// Steps taken.
     pub step: u64,
     /// Simulated time [s].
@@ -56,6 +65,25 @@ pub struct Diagnostics {
     pub max_overlap_ratio: f64,
     /// Neighbour-list builds so far.
     pub neighbor_builds: u64,
+    /// Thermal quantities, for scenes with `[thermal]`.
+    pub thermal: Option<ThermalDiagnostics>,
+}
+
+/// Thermal quantities of the current state.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ThermalDiagnostics {
+    /// `Σ E_i` [J] (M.48).
+    pub enthalpy: f64,
+    /// Laser energy absorbed since the start [J].
+    pub laser_energy: f64,
+    /// Heat received from walls, gas and surroundings since the start [J].
+    pub boundary_energy: f64,
+    /// Highest particle temperature [K].
+    pub max_temperature: f64,
+    /// Particles that have reached their melting point.
+    pub melted: usize,
+    /// Thermal substeps of the last step.
+    pub substeps: u32,
 }
 
 impl Diagnostics {
@@ -71,17 +99,24 @@ impl Simulation {
     #[must_use]
     pub fn new(model: Model, particles: Particles) -> Self {
         let neighbors = NeighborList::new(model.skin);
+        let thermal = model
+            .thermal
+            .as_ref()
+            .map(|t| ThermalState::new(t, &particles));
         let mut sim = Self {
             model,
             particles,
             neighbors,
             bond_states: Vec::new(),
             pair_results: Vec::new(),
+            thermal,
+            laser_snapshot: laser::Snapshot::default(),
             step: 0,
             time: 0.0,
         };
         sim.rebuild_neighbors();
         sim.compute_forces();
+        sim.update_conductances();
         sim
     }
 
@@ -100,12 +135,60 @@ impl Simulation {
             &self.neighbors,
             &mut self.bond_states,
             &mut self.pair_results,
+            self.thermal.as_ref().map(|t| t.melted.as_slice()),
         );
         forces::gather(
             &self.model,
             &mut self.particles,
             &self.neighbors,
             &self.pair_results,
+        );
+    }
+
+    fn update_conductances(&mut self) {
+        if let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) {
+            let results = &self.pair_results;
+            thermal::update_conductances(
+                model,
+                &self.particles,
+                &self.neighbors,
+                |p| results[p].overlap,
+                &mut state.conductance,
+            );
+        }
+    }
+
+    /// Step 5 of the step order: conductances, laser, temperatures over dt.
+    fn advance_temperatures(&mut self) {
+        self.update_conductances();
+        let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) else {
+            return;
+        };
+        if let Some(laser) = &self.model.laser {
+            let beam = laser.beam_at(self.time + 0.5 * self.model.dt);
+            let p = &self.particles;
+            if !self.laser_snapshot.still_valid(beam, p, laser.raster_cell) {
+                let lit = match beam {
+                    Some(at) => {
+                        let absorptivity =
+                            |k: usize| model.materials[usize::from(p.material[k])].absorptivity;
+                        laser.absorb(at, p, absorptivity, &mut state.laser_power)
+                    }
+                    None => {
+                        state.laser_power.fill(0.0);
+                        Vec::new()
+                    }
+                };
+                self.laser_snapshot.record(beam, &lit, p);
+            }
+        }
+        thermal::advance(
+            model,
+            &self.model.walls,
+            &self.particles,
+            &self.neighbors,
+            state,
+            self.model.dt,
         );
     }
 
@@ -117,6 +200,7 @@ impl Simulation {
             self.rebuild_neighbors();
         }
         self.compute_forces();
+        self.advance_temperatures();
         integrate::kick(&mut self.particles, dt);
         self.step += 1;
         #[allow(clippy::cast_precision_loss)]
@@ -192,12 +276,50 @@ impl Simulation {
                 }
             }
         }
+        d.thermal = self.thermal.as_ref().map(|t| ThermalDiagnostics {
+            enthalpy: t.total_enthalpy(),
+            laser_energy: t.total_laser_energy(),
+            boundary_energy: t.total_boundary_energy(),
+            max_temperature: t
+                .temperature
+                .iter()
+                .copied()
+                .fold(f64::NEG_INFINITY, f64::max),
+            melted: t.melted.iter().filter(|m| **m).count(),
+            substeps: t.substeps,
+        });
         d
+    }
+
+    /// Smallest thermal time constant `min C_i/G_i` [s] at the current state (M.49), for scenes
+    /// with `[thermal]`; infinite when nothing exchanges heat.
+    #[must_use]
+    pub fn smallest_thermal_time_constant(&self) -> Option<f64> {
+        let model = self.model.thermal.as_ref()?;
+        // Evaluated on a copy: measuring must not touch the run's scratch arrays.
+        let mut state = self.thermal.clone()?;
+        Some(
+            1.0 / thermal::max_stiffness(
+                model,
+                &self.model.walls,
+                &self.particles,
+                &self.neighbors,
+                &mut state,
+            ),
+        )
     }
 
     /// The first non-finite particle value as `(particle id, field)`.
     #[must_use]
     pub fn first_non_finite(&self) -> Option<(u64, &'static str)> {
-        integrate::first_non_finite(&self.particles).map(|(k, field)| (self.particles.id[k], field))
+        let thermal = self.thermal.as_ref().and_then(|t| {
+            t.temperature
+                .iter()
+                .position(|x| !x.is_finite())
+                .map(|k| (k, "temperature"))
+        });
+        integrate::first_non_finite(&self.particles)
+            .or(thermal)
+            .map(|(k, field)| (self.particles.id[k], field))
     }
 }

@@ -89,7 +89,7 @@ const CASES: &[(&str, &str, &[&str])] = &[
         &[
             "bond.criterion",
             "unknown variant `melted`",
-            "`always` or `never`",
+            "`always`, `never`, `melting`",
         ],
     ),
     (
@@ -214,9 +214,147 @@ const CASES: &[(&str, &str, &[&str])] = &[
     ),
 ];
 
+/// Changes to BASE that give it a thermal model and a laser (valid).
+fn thermal_base() -> String {
+    BASE.replacen(
+        "poisson_ratio = 0.3",
+        "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 500\nthermal_conductivity_w_m_k = 20\nmelting_point_k = 1700\nemissivity = 0.4\nabsorptivity = 0.6",
+        1,
+    )
+    .replacen("criterion = \"always\"", "criterion = \"melting\"\nmelting_rule = \"either\"", 1)
+    .replacen("material = \"steel\"\n[output]", "material = \"steel\"\ntemperature_k = 300\n[output]", 1)
+    .replacen(
+        "[output]",
+        "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n[thermal.radiation]\nenvironment_temperature_k = 300\n\
+         [laser]\npower_w = 50\nspot_radius_m = 4e-5\n[laser.path]\nkind = \"hatch\"\nstart_m = [0.0, 0.0]\ntrack_length_m = 1e-4\n\
+         hatch_spacing_m = 3e-5\ntracks = 3\nspeed_m_s = 0.5\n[output]",
+        1,
+    )
+}
+
+/// Thermal and laser cases, applied to [`thermal_base`].
+const THERMAL_CASES: &[(&str, &str, &[&str])] = &[
+    (
+        "conduction = \"batchelor_obrien\"",
+        "conduction = \"batchelor\"",
+        &[
+            "thermal.conduction",
+            "unknown variant `batchelor`",
+            "`thermal_pipe`",
+        ],
+    ),
+    (
+        "conduction = \"batchelor_obrien\"",
+        "",
+        &["thermal", "missing field `conduction`"],
+    ),
+    (
+        "kind = \"hatch\"",
+        "kind = \"hatched\"",
+        &[
+            "laser.path",
+            "unknown variant `hatched`",
+            "`polyline`, `hatch`, `stationary`",
+        ],
+    ),
+    (
+        "tracks = 3",
+        "tracks = 3\nlength = 1e-4",
+        &["laser.path", "unknown field `length`"],
+    ),
+    (
+        "tracks = 3",
+        "tracks = 0",
+        &["laser.path.tracks = 0: must be ≥ 1"],
+    ),
+    (
+        "power_w = 50",
+        "power_w = -50",
+        &["laser.power_w = -50: must be > 0"],
+    ),
+    (
+        "specific_heat_j_kg_k = 500\n",
+        "",
+        &["materials.steel.specific_heat_j_kg_k = missing: needed by [thermal]"],
+    ),
+    (
+        "emissivity = 0.4",
+        "emissivity = 1.4",
+        &["materials.steel.emissivity = 1.4: must be in [0, 1]"],
+    ),
+    (
+        "emissivity = 0.4\n",
+        "",
+        &["materials.steel.emissivity = missing: needed by [thermal.radiation]"],
+    ),
+    (
+        "absorptivity = 0.6",
+        "",
+        &["materials.steel.absorptivity = missing: needed by [laser]"],
+    ),
+    (
+        "initial_temperature_k = 300",
+        "initial_temperature_k = 300\nsubstep_fraction = 1.5",
+        &["thermal.substep_fraction = 1.5: must be in (0, 1]"],
+    ),
+    (
+        "temperature_k = 300\n[thermal]",
+        "temperature_k = -5\n[thermal]",
+        &["walls[0].temperature_k = -5: must be > 0"],
+    ),
+];
+
 #[test]
-fn the_base_scene_is_valid() {
+fn the_base_scenes_are_valid() {
     Scene::from_toml(BASE).expect("base scene");
+    Scene::from_toml(&thermal_base()).expect("thermal base scene");
+}
+
+#[test]
+fn every_bad_thermal_scene_is_rejected_with_key_value_and_reason() {
+    let base = thermal_base();
+    for (from, to, fragments) in THERMAL_CASES {
+        assert!(base.contains(from), "case does not apply: {from:?}");
+        let message = match Scene::from_toml(&base.replacen(from, to, 1)) {
+            Ok(_) => panic!("accepted a bad scene ({from:?} → {to:?})"),
+            Err(e) => e.to_string(),
+        };
+        for fragment in *fragments {
+            assert!(
+                message.contains(fragment),
+                "({from:?} → {to:?}): message lacks {fragment:?}:\n{message}"
+            );
+        }
+    }
+}
+
+#[test]
+fn thermal_physics_without_a_thermal_section_is_refused_with_both_keys_named() {
+    let text = thermal_base();
+    let start = text.find("[thermal]").unwrap();
+    let end = text.find("[laser]").unwrap();
+    let without = format!("{}{}", &text[..start], &text[end..]);
+    let message = Scene::from_toml(&without).unwrap_err().to_string();
+    for fragment in [
+        "bond.criterion = \"melting\": needs a [thermal] section",
+        "laser = [laser]: needs a [thermal] section",
+        "walls[0].temperature_k = 300: needs a [thermal] section",
+    ] {
+        assert!(message.contains(fragment), "lacks {fragment:?}:\n{message}");
+    }
+    let rule_without_melting = BASE.replacen(
+        "criterion = \"always\"",
+        "criterion = \"always\"\nmelting_rule = \"both\"",
+        1,
+    );
+    let message = Scene::from_toml(&rule_without_melting)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("bond.melting_rule")
+            && message.contains("only used with bond.criterion = \"melting\""),
+        "{message}"
+    );
 }
 
 #[test]

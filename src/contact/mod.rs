@@ -102,10 +102,12 @@ pub fn normal_force(
     let e_star = params.effective_modulus;
     let r_star = kin.effective_radius;
     if let Some(bond) = &params.bond {
-        let critical = bond.critical_overlap(e_star, r_star);
+        // δ_crit costs a powf: only computed when the pair is bonded or may bond.
         let bonded = match state {
-            BondState::Bonded => bond::holds(overlap, critical),
-            BondState::Unbonded => bond::forms(criterion_met, overlap, critical),
+            BondState::Bonded => bond::holds(overlap, bond.critical_overlap(e_star, r_star)),
+            BondState::Unbonded => {
+                criterion_met && bond::forms(true, overlap, bond.critical_overlap(e_star, r_star))
+            }
         };
         if bonded {
             return NormalForce {

@@ -44,6 +44,10 @@ pub struct Scene {
     pub walls: Vec<WallConfig>,
     /// `[output]`: what is written during the run.
     pub output: Option<OutputConfig>,
+    /// `[thermal]`: per-particle temperatures; absent means no thermal arrays and no thermal pass.
+    pub thermal: Option<ThermalConfig>,
+    /// `[laser]`: a moving Gaussian beam (needs `[thermal]`).
+    pub laser: Option<LaserConfig>,
 }
 
 /// `[scene]`
@@ -85,6 +89,18 @@ pub struct MaterialConfig {
     pub youngs_modulus_pa: f64,
     /// Poisson ratio, in `(−1, 0.5)`.
     pub poisson_ratio: f64,
+    /// Specific heat c [J/(kg·K)], `> 0`; needed with `[thermal]`.
+    pub specific_heat_j_kg_k: Option<f64>,
+    /// Thermal conductivity k [W/(m·K)], `> 0`; needed with `[thermal]`.
+    pub thermal_conductivity_w_m_k: Option<f64>,
+    /// Melting point [K], `> 0`; needed with `[thermal]`.
+    pub melting_point_k: Option<f64>,
+    /// Latent heat of fusion L [J/kg], `≥ 0`; default 0 (melting takes no heat).
+    pub latent_heat_j_kg: Option<f64>,
+    /// Emissivity in `[0, 1]`; needed with `[thermal.radiation]`.
+    pub emissivity: Option<f64>,
+    /// Laser absorptivity in `[0, 1]`; needed with `[laser]`.
+    pub absorptivity: Option<f64>,
 }
 
 /// `[contact]`
@@ -123,6 +139,19 @@ pub struct BondConfig {
     pub damping_ratio: f64,
     /// When the bond criterion holds.
     pub criterion: CriterionConfig,
+    /// With `criterion = "melting"`: whether both particles (default) or either must have melted.
+    pub melting_rule: Option<MeltingRule>,
+}
+
+/// Which particles of a pair must have reached their melting point.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum MeltingRule {
+    /// Both particles (default).
+    #[default]
+    Both,
+    /// At least one of them.
+    Either,
 }
 
 /// The bond criterion of paper eq. 25.
@@ -133,6 +162,9 @@ pub enum CriterionConfig {
     Always,
     /// Never holds (the bonded branch is never entered).
     Never,
+    /// Holds once the particles' temperatures have reached their melting points (latched per
+    /// particle); needs `[thermal]`.
+    Melting,
 }
 
 /// `[[particles]]`
@@ -186,6 +218,8 @@ pub struct WallConfig {
     pub normal: [f64; 3],
     /// Name of a `[materials.NAME]` table (for E* of the particle–wall contact).
     pub material: String,
+    /// Fixed temperature of the wall [K] (needs `[thermal]`); absent: the wall is adiabatic.
+    pub temperature_k: Option<f64>,
 }
 
 /// `[output]`
@@ -240,4 +274,117 @@ impl Scene {
             })
         }
     }
+}
+
+/// `[thermal]`: lumped heat transfer, one temperature per particle.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ThermalConfig {
+    /// Temperature of every particle at t = 0 [K], `> 0`.
+    pub initial_temperature_k: f64,
+    /// Contact conductance model (no default: the models differ by orders of magnitude).
+    pub conduction: ConductionConfig,
+    /// Sub-cycling safety factor θ in `(0, 1]` (docs/model.md, M.49); default 0.5.
+    pub substep_fraction: Option<f64>,
+    /// `[thermal.convection]`: Newton cooling to a gas.
+    pub convection: Option<ConvectionConfig>,
+    /// `[thermal.radiation]`: grey-body radiation to the surroundings.
+    pub radiation: Option<RadiationConfig>,
+}
+
+/// Contact conductance models.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ConductionConfig {
+    /// `H = 2 k* a` (Batchelor & O'Brien 1977).
+    BatchelorObrien,
+    /// `H = k̄ π a² / d` (the thermal pipe of Quintana-Ruiz & Campello 2020).
+    ThermalPipe,
+    /// No conduction through contacts.
+    None,
+}
+
+/// `[thermal.convection]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConvectionConfig {
+    /// Heat-transfer coefficient h [W/(m²·K)], `≥ 0`.
+    pub heat_transfer_coefficient_w_m2_k: f64,
+    /// Gas temperature [K], `> 0`.
+    pub gas_temperature_k: f64,
+}
+
+/// `[thermal.radiation]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RadiationConfig {
+    /// Temperature of the surroundings [K], `≥ 0`.
+    pub environment_temperature_k: f64,
+}
+
+/// `[laser]`: a Gaussian beam shining down −z along a scan path.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LaserConfig {
+    /// Beam power P [W], `> 0`.
+    pub power_w: f64,
+    /// 1/e² radius w [m], `> 0`.
+    pub spot_radius_m: f64,
+    /// Time at which the scan path starts [s], `≥ 0`; default 0.
+    #[serde(default)]
+    pub start_time_s: f64,
+    /// Side of the ray-casting cells [m], `> 0`; default a tenth of the smallest radius.
+    pub raster_cell_m: Option<f64>,
+    /// `[laser.path]`: where the beam goes.
+    pub path: PathConfig,
+}
+
+/// The scan path, chosen by `kind`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PathConfig {
+    /// Straight segments through the points, at constant speed, laser on throughout.
+    Polyline {
+        /// Points (x, y) [m], at least two.
+        points_m: Vec<[f64; 2]>,
+        /// Scan speed [m/s], `> 0`.
+        speed_m_s: f64,
+    },
+    /// Parallel tracks in alternating directions (a meander), laser off while jumping.
+    Hatch {
+        /// Start of the first track (x, y) [m].
+        start_m: [f64; 2],
+        /// Length of each track [m], `> 0`.
+        track_length_m: f64,
+        /// Distance between neighbouring tracks [m], `> 0`.
+        hatch_spacing_m: f64,
+        /// Number of tracks, `≥ 1`.
+        tracks: u32,
+        /// Scan speed along a track [m/s], `> 0`.
+        speed_m_s: f64,
+        /// Axis of the tracks: `"x"` (default) or `"y"`; tracks step along the other axis.
+        #[serde(default)]
+        direction: Axis,
+        /// Time the beam takes (laser off) to reach the next track [s], `≥ 0`; default 0.
+        #[serde(default)]
+        jump_time_s: f64,
+    },
+    /// A beam standing still.
+    Stationary {
+        /// Beam axis (x, y) [m].
+        position_m: [f64; 2],
+        /// How long it shines [s], `> 0`.
+        duration_s: f64,
+    },
+}
+
+/// A horizontal axis.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Axis {
+    /// Along x.
+    #[default]
+    X,
+    /// Along y.
+    Y,
 }

@@ -179,6 +179,9 @@ pub fn validate(scene: &Scene) -> Vec<Violation> {
         c.material(scene, &format!("walls[{k}].material"), &w.material);
     }
 
+    validate_thermal(&mut c, scene);
+    validate_laser(&mut c, scene);
+
     if let Some(out) = &scene.output {
         if out.every_steps == Some(0) {
             c.fail("output.every_steps", 0, "must be ≥ 1");
@@ -308,4 +311,203 @@ fn validate_lattice(c: &mut Checker, scene: &Scene, k: usize) -> u64 {
         count = count.saturating_mul(n);
     }
     count
+}
+
+/// `[thermal]`, the thermal keys of materials and walls, and the melting criterion.
+fn validate_thermal(c: &mut Checker, scene: &Scene) {
+    let melting = scene
+        .bond
+        .as_ref()
+        .is_some_and(|b| b.criterion == super::CriterionConfig::Melting);
+    if let Some(bond) = &scene.bond {
+        if bond.melting_rule.is_some() && !melting {
+            c.fail(
+                "bond.melting_rule",
+                format!("{:?}", bond.melting_rule),
+                "only used with bond.criterion = \"melting\"",
+            );
+        }
+    }
+    let Some(thermal) = &scene.thermal else {
+        if melting {
+            c.fail(
+                "bond.criterion",
+                "\"melting\"",
+                "needs a [thermal] section: particles have no temperature without it",
+            );
+        }
+        if scene.laser.is_some() {
+            c.fail(
+                "laser",
+                "[laser]",
+                "needs a [thermal] section: the absorbed power heats particles",
+            );
+        }
+        for (k, w) in scene.walls.iter().enumerate() {
+            if let Some(t) = w.temperature_k {
+                c.fail(
+                    format!("walls[{k}].temperature_k"),
+                    t,
+                    "needs a [thermal] section",
+                );
+            }
+        }
+        return;
+    };
+    c.positive(
+        "thermal.initial_temperature_k",
+        thermal.initial_temperature_k,
+    );
+    if let Some(theta) = thermal.substep_fraction {
+        if c.finite("thermal.substep_fraction", theta) && !(theta > 0.0 && theta <= 1.0) {
+            c.fail(
+                "thermal.substep_fraction",
+                theta,
+                "must be in (0, 1]: above 1 the explicit substeps lose the maximum principle",
+            );
+        }
+    }
+    if let Some(conv) = &thermal.convection {
+        c.non_negative(
+            "thermal.convection.heat_transfer_coefficient_w_m2_k",
+            conv.heat_transfer_coefficient_w_m2_k,
+        );
+        c.positive(
+            "thermal.convection.gas_temperature_k",
+            conv.gas_temperature_k,
+        );
+    }
+    if let Some(rad) = &thermal.radiation {
+        c.non_negative(
+            "thermal.radiation.environment_temperature_k",
+            rad.environment_temperature_k,
+        );
+    }
+    for (k, w) in scene.walls.iter().enumerate() {
+        if let Some(t) = w.temperature_k {
+            c.positive(&format!("walls[{k}].temperature_k"), t);
+        }
+    }
+    for (name, m) in &scene.materials {
+        let key = |field: &str| format!("materials.{name}.{field}");
+        let required = |c: &mut Checker, field: &str, value: Option<f64>, why: &str| match value {
+            Some(v) => c.positive(&key(field), v),
+            None => c.fail(key(field), "missing", format!("needed {why}")),
+        };
+        required(
+            c,
+            "specific_heat_j_kg_k",
+            m.specific_heat_j_kg_k,
+            "by [thermal]",
+        );
+        required(
+            c,
+            "thermal_conductivity_w_m_k",
+            m.thermal_conductivity_w_m_k,
+            "by [thermal]",
+        );
+        required(c, "melting_point_k", m.melting_point_k, "by [thermal]");
+        if let Some(l) = m.latent_heat_j_kg {
+            c.non_negative(&key("latent_heat_j_kg"), l);
+        }
+        let fraction =
+            |c: &mut Checker, field: &str, value: Option<f64>, needed: bool, why: &str| match value
+            {
+                Some(v) if c.finite(&key(field), v) && !(0.0..=1.0).contains(&v) => {
+                    c.fail(key(field), v, "must be in [0, 1]");
+                }
+                Some(_) => {}
+                None if needed => c.fail(key(field), "missing", format!("needed by {why}")),
+                None => {}
+            };
+        fraction(
+            c,
+            "emissivity",
+            m.emissivity,
+            thermal.radiation.is_some(),
+            "[thermal.radiation]",
+        );
+        fraction(
+            c,
+            "absorptivity",
+            m.absorptivity,
+            scene.laser.is_some(),
+            "[laser]",
+        );
+    }
+}
+
+/// `[laser]` and its path.
+fn validate_laser(c: &mut Checker, scene: &Scene) {
+    let Some(laser) = &scene.laser else { return };
+    c.positive("laser.power_w", laser.power_w);
+    c.positive("laser.spot_radius_m", laser.spot_radius_m);
+    c.non_negative("laser.start_time_s", laser.start_time_s);
+    if let Some(h) = laser.raster_cell_m {
+        c.positive("laser.raster_cell_m", h);
+        if h > 0.0 && laser.spot_radius_m > 0.0 && 6.0 * laser.spot_radius_m / h > 4096.0 {
+            c.fail("laser.raster_cell_m", h, format!("gives more than 4096 × 4096 rays over the ±3w window of the spot ({} m): use a larger cell", laser.spot_radius_m));
+        }
+    }
+    match &laser.path {
+        super::PathConfig::Polyline {
+            points_m,
+            speed_m_s,
+        } => {
+            if points_m.len() < 2 {
+                c.fail(
+                    "laser.path.points_m",
+                    format!("{points_m:?}"),
+                    "needs at least two points",
+                );
+            }
+            for (k, p) in points_m.iter().enumerate() {
+                if p.iter().any(|x| !x.is_finite()) {
+                    c.fail(
+                        format!("laser.path.points_m[{k}]"),
+                        format!("{p:?}"),
+                        "every component must be a finite number",
+                    );
+                }
+            }
+            c.positive("laser.path.speed_m_s", *speed_m_s);
+        }
+        super::PathConfig::Hatch {
+            start_m,
+            track_length_m,
+            hatch_spacing_m,
+            tracks,
+            speed_m_s,
+            jump_time_s,
+            ..
+        } => {
+            if start_m.iter().any(|x| !x.is_finite()) {
+                c.fail(
+                    "laser.path.start_m",
+                    format!("{start_m:?}"),
+                    "every component must be a finite number",
+                );
+            }
+            c.positive("laser.path.track_length_m", *track_length_m);
+            c.positive("laser.path.hatch_spacing_m", *hatch_spacing_m);
+            if *tracks == 0 {
+                c.fail("laser.path.tracks", 0, "must be ≥ 1");
+            }
+            c.positive("laser.path.speed_m_s", *speed_m_s);
+            c.non_negative("laser.path.jump_time_s", *jump_time_s);
+        }
+        super::PathConfig::Stationary {
+            position_m,
+            duration_s,
+        } => {
+            if position_m.iter().any(|x| !x.is_finite()) {
+                c.fail(
+                    "laser.path.position_m",
+                    format!("{position_m:?}"),
+                    "every component must be a finite number",
+                );
+            }
+            c.positive("laser.path.duration_s", *duration_s);
+        }
+    }
 }

@@ -1,0 +1,495 @@
+//! Lumped heat transfer: one temperature per sphere (M.47),
+//!
+//! ```text
+//! dE_i/dt = Σ_j H_ij (T_j − T_i) + Σ_walls H_iw (T_w − T_i) + h A_i (T_gas − T_i)
+//!           + ε_i σ A_i (T_env⁴ − T_i⁴) + P_laser,i                                   [W]
+//! ```
+//!
+//! with the enthalpy `E_i` carrying the latent heat of fusion (M.48) and `T_i = T(E_i)`.
+//!
+//! # Time integration (M.49)
+//! Sub-cycled explicit Euler on the enthalpy: the mechanical step is split into `n` substeps with
+//! `n = ⌈dt · max_i(G_i / C_i) / θ⌉`, where `G_i` is particle i's total conductance (contacts,
+//! walls, convection, linearised radiation) and `C_i = m_i c_i` its heat capacity. With `θ ≤ 1`
+//! every substep writes each new temperature as a convex combination of old temperatures and the
+//! ambient ones, so no temperature overshoots the range of its neighbours (discrete maximum
+//! principle), however stiff the contact network: the scheme is stable by construction. The usual
+//! powder bed has `G dt / C ≪ 1` and takes one substep. Heat is exchanged pairwise with
+//! `±H (T_j − T_i)`, which IEEE arithmetic makes exactly antisymmetric, so conduction conserves the
+//! total heat to round-off.
+//!
+//! A scene without `[thermal]` has no `ThermalState`: no arrays, no passes.
+
+pub mod conduction;
+pub mod losses;
+
+use rayon::prelude::*;
+
+use crate::model::Wall;
+use crate::neighbor::NeighborList;
+use crate::particles::Particles;
+
+/// Thermal data of one material (SI).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThermalMaterial {
+    /// Specific heat c [J/(kg·K)].
+    pub specific_heat: f64,
+    /// Thermal conductivity k [W/(m·K)].
+    pub conductivity: f64,
+    /// Melting point T_m [K].
+    pub melting_point: f64,
+    /// Latent heat of fusion L [J/kg] (0: melting takes no heat).
+    pub latent_heat: f64,
+    /// Emissivity ε (for radiation).
+    pub emissivity: f64,
+    /// Absorptivity of laser light (fraction of the incident power absorbed).
+    pub absorptivity: f64,
+}
+
+/// The contact conductance model chosen in the scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConductionModel {
+    /// No conduction through contacts.
+    None,
+    /// `H = 2 k* a` (M.41).
+    BatchelorObrien,
+    /// `H = k̄ π a² / d` (M.42).
+    ThermalPipe,
+}
+
+/// Resolved thermal parameters of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ThermalModel {
+    /// Per material, indexed like `Model::materials`.
+    pub materials: Vec<ThermalMaterial>,
+    /// Contact conductance model.
+    pub conduction: ConductionModel,
+    /// `(h [W/(m²·K)], T_gas [K])`, if convection is on.
+    pub convection: Option<(f64, f64)>,
+    /// Surroundings temperature T_env [K], if radiation is on.
+    pub radiation: Option<f64>,
+    /// Per wall: its fixed temperature [K], or `None` for an adiabatic wall.
+    pub wall_temperatures: Vec<Option<f64>>,
+    /// Initial temperature of every particle [K].
+    pub initial_temperature: f64,
+    /// θ of (M.49): a substep is at most θ times the smallest `C_i / G_i`; `0 < θ ≤ 1`.
+    pub substep_fraction: f64,
+}
+
+/// Per-particle thermal state (structure of arrays, like `Particles`).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ThermalState {
+    /// Temperature [K], `T(E)` of (M.48).
+    pub temperature: Vec<f64>,
+    /// Enthalpy [J], the integrated state (M.48).
+    pub enthalpy: Vec<f64>,
+    /// Heat capacity `C = m c` [J/K].
+    pub heat_capacity: Vec<f64>,
+    /// Latent heat of the whole particle `m L` [J].
+    pub latent_heat: Vec<f64>,
+    /// Melting point [K] (per particle, from its material).
+    pub melting_point: Vec<f64>,
+    /// Latched bond criterion: the particle has reached its melting point at some time.
+    pub melted: Vec<bool>,
+    /// Laser power absorbed during the current step [W].
+    pub laser_power: Vec<f64>,
+    /// Per pair slot of the neighbour list: contact conductance H [W/K] of this step.
+    pub conductance: Vec<f64>,
+    /// Net heat flow into each particle at the start of the current substep [W].
+    heat_flow: Vec<f64>,
+    /// Per particle: total conductance G_i [W/K] (M.49).
+    total_conductance: Vec<f64>,
+    /// Heat flow from walls, gas and surroundings into each particle [W] (part of `heat_flow`).
+    boundary_flow: Vec<f64>,
+    /// Per particle: laser energy absorbed since the start [J]. Kept per particle, so the pass
+    /// that adds to it writes only its own slot; totals are summed when asked for.
+    pub laser_energy: Vec<f64>,
+    /// Per particle: heat received from walls, gas and surroundings since the start [J].
+    pub boundary_energy: Vec<f64>,
+    /// Substeps taken in the last step.
+    pub substeps: u32,
+    /// Most substeps taken in one step so far.
+    pub max_substeps: u32,
+}
+
+/// Temperature of a particle from its enthalpy (M.48) [K]:
+///
+/// ```text
+/// T = E / C                     for E < C T_m          (solid)
+/// T = T_m                       for C T_m ≤ E ≤ C T_m + m L   (melting)
+/// T = (E − m L) / C             above                  (liquid)
+/// ```
+#[must_use]
+#[inline]
+pub fn temperature_from_enthalpy(
+    enthalpy: f64,
+    heat_capacity: f64,
+    melting_point: f64,
+    latent_heat: f64,
+) -> f64 {
+    let solidus = heat_capacity * melting_point;
+    if enthalpy < solidus {
+        enthalpy / heat_capacity
+    } else if enthalpy <= solidus + latent_heat {
+        melting_point
+    } else {
+        (enthalpy - latent_heat) / heat_capacity
+    }
+}
+
+/// Enthalpy of a particle at temperature `T` (M.48) [J]; a particle at exactly T_m is solid.
+#[must_use]
+#[inline]
+pub fn enthalpy_from_temperature(
+    temperature: f64,
+    heat_capacity: f64,
+    melting_point: f64,
+    latent_heat: f64,
+) -> f64 {
+    if temperature <= melting_point {
+        heat_capacity * temperature
+    } else {
+        heat_capacity * temperature + latent_heat
+    }
+}
+
+/// Melt fraction in [0, 1] (M.48): the share of the latent heat taken so far.
+#[must_use]
+pub fn melt_fraction(
+    enthalpy: f64,
+    heat_capacity: f64,
+    melting_point: f64,
+    latent_heat: f64,
+) -> f64 {
+    let above = enthalpy - heat_capacity * melting_point;
+    if latent_heat > 0.0 {
+        (above / latent_heat).clamp(0.0, 1.0)
+    } else if above > 0.0 {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+impl ThermalState {
+    /// Every particle at the model's initial temperature.
+    #[must_use]
+    pub fn new(model: &ThermalModel, particles: &Particles) -> Self {
+        let n = particles.len();
+        let mut state = Self::default();
+        for k in 0..n {
+            let material = &model.materials[usize::from(particles.material[k])];
+            let capacity = particles.mass[k] * material.specific_heat;
+            let latent = particles.mass[k] * material.latent_heat;
+            let t0 = model.initial_temperature;
+            state.heat_capacity.push(capacity);
+            state.latent_heat.push(latent);
+            state.melting_point.push(material.melting_point);
+            state.enthalpy.push(enthalpy_from_temperature(
+                t0,
+                capacity,
+                material.melting_point,
+                latent,
+            ));
+            state.temperature.push(t0);
+            state.melted.push(t0 >= material.melting_point);
+        }
+        state.laser_power = vec![0.0; n];
+        state.heat_flow = vec![0.0; n];
+        state.total_conductance = vec![0.0; n];
+        state.boundary_flow = vec![0.0; n];
+        state.laser_energy = vec![0.0; n];
+        state.boundary_energy = vec![0.0; n];
+        state
+    }
+
+    /// Total enthalpy `Σ E_i` [J], summed in index order (reproducible).
+    #[must_use]
+    pub fn total_enthalpy(&self) -> f64 {
+        self.enthalpy.iter().sum()
+    }
+
+    /// Laser energy absorbed by all particles since the start [J] (summed in index order).
+    #[must_use]
+    pub fn total_laser_energy(&self) -> f64 {
+        self.laser_energy.iter().sum()
+    }
+
+    /// Heat received from walls, gas and surroundings since the start [J] (negative: lost).
+    #[must_use]
+    pub fn total_boundary_energy(&self) -> f64 {
+        self.boundary_energy.iter().sum()
+    }
+
+    /// Sets one particle's temperature (and its enthalpy consistently), e.g. for tests.
+    pub fn set_temperature(&mut self, k: usize, temperature: f64) {
+        self.enthalpy[k] = enthalpy_from_temperature(
+            temperature,
+            self.heat_capacity[k],
+            self.melting_point[k],
+            self.latent_heat[k],
+        );
+        self.temperature[k] = temperature;
+        self.melted[k] |= temperature >= self.melting_point[k];
+    }
+}
+
+/// Contact conductances of every pair slot from this step's overlaps (parallel over pairs).
+/// `overlap(p)` is the overlap of pair slot p [m] from this step's pair pass.
+pub fn update_conductances(
+    model: &ThermalModel,
+    particles: &Particles,
+    list: &NeighborList,
+    overlap: impl Fn(usize) -> f64 + Sync,
+    conductance: &mut Vec<f64>,
+) {
+    conductance.resize(list.pairs.len(), 0.0);
+    let law = |(p, (&[a, b], h)): (usize, (&[u32; 2], &mut f64))| {
+        let overlap = overlap(p);
+        let (a, b) = (a as usize, b as usize);
+        *h = if overlap > 0.0 {
+            let (ra, rb) = (particles.radius[a], particles.radius[b]);
+            let ka = model.materials[usize::from(particles.material[a])].conductivity;
+            let kb = model.materials[usize::from(particles.material[b])].conductivity;
+            let contact = conduction::contact_radius(ra * rb / (ra + rb), overlap);
+            match model.conduction {
+                ConductionModel::None => 0.0,
+                ConductionModel::BatchelorObrien => conduction::batchelor_obrien(ka, kb, contact),
+                ConductionModel::ThermalPipe => {
+                    conduction::thermal_pipe(ka, kb, ra, rb, contact, ra + rb - overlap)
+                }
+            }
+        } else {
+            0.0
+        };
+    };
+    if crate::worth_parallel(list.pairs.len()) {
+        list.pairs
+            .par_iter()
+            .zip(conductance.par_iter_mut())
+            .enumerate()
+            .for_each(law);
+    } else {
+        list.pairs
+            .iter()
+            .zip(conductance.iter_mut())
+            .enumerate()
+            .for_each(law);
+    }
+}
+
+/// Conductance between particle `k` and wall `w` (M.41, M.43) [W/K]; 0 if apart or adiabatic.
+fn wall_conductance(
+    model: &ThermalModel,
+    particles: &Particles,
+    k: usize,
+    w: usize,
+    wall: &Wall,
+) -> f64 {
+    if model.wall_temperatures[w].is_none() {
+        return 0.0;
+    }
+    let radius = particles.radius[k];
+    let centre_distance = (particles.position[k] - wall.point).dot(wall.normal);
+    let overlap = radius - centre_distance;
+    if overlap <= 0.0 {
+        return 0.0;
+    }
+    let k_particle = model.materials[usize::from(particles.material[k])].conductivity;
+    let k_wall = model.materials[usize::from(wall.material)].conductivity;
+    let contact = conduction::contact_radius(radius, overlap);
+    match model.conduction {
+        ConductionModel::None => 0.0,
+        ConductionModel::BatchelorObrien => {
+            conduction::batchelor_obrien(k_particle, k_wall, contact)
+        }
+        ConductionModel::ThermalPipe => conduction::thermal_pipe_wall(
+            k_particle,
+            contact,
+            centre_distance.max(f64::MIN_POSITIVE),
+        ),
+    }
+}
+
+/// Largest `G_i / C_i` over the particles [1/s] (M.49) for the current temperatures and
+/// conductances: its inverse is the smallest thermal time constant.
+#[must_use]
+pub fn max_stiffness(
+    model: &ThermalModel,
+    walls: &[Wall],
+    particles: &Particles,
+    list: &NeighborList,
+    state: &mut ThermalState,
+) -> f64 {
+    heat_flows(model, walls, particles, list, state)
+}
+
+/// One particle's slots written by the enthalpy update: ((enthalpy, temperature), melted) and
+/// (laser energy, boundary energy).
+type OwnSlots<'a> = (
+    ((&'a mut f64, &'a mut f64), &'a mut bool),
+    (&'a mut f64, &'a mut f64),
+);
+
+/// Advances the temperatures over one mechanical step `dt` [s] by (M.49), using the contact
+/// conductances and laser powers already stored in `state`.
+///
+/// Per substep: one pass over the particles computes every heat flow (and, in the first, every
+/// total conductance G_i, which fixes the substep count), a second streams the enthalpy update.
+pub fn advance(
+    model: &ThermalModel,
+    walls: &[Wall],
+    particles: &Particles,
+    list: &NeighborList,
+    state: &mut ThermalState,
+    dt: f64,
+) {
+    let n = particles.len();
+    let worst = heat_flows(model, walls, particles, list, state);
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let substeps = ((dt * worst / model.substep_fraction).ceil() as u32).max(1);
+    let dt_sub = dt / f64::from(substeps);
+    for substep in 0..substeps {
+        if substep > 0 {
+            heat_flows(model, walls, particles, list, state);
+        }
+        let ThermalState {
+            enthalpy,
+            temperature,
+            heat_capacity,
+            melting_point,
+            latent_heat,
+            melted,
+            heat_flow,
+            laser_power,
+            boundary_flow,
+            laser_energy,
+            boundary_energy,
+            ..
+        } = state;
+        let update = |(k, (((e, t), m), (laser, boundary))): (usize, OwnSlots<'_>)| {
+            *e += dt_sub * heat_flow[k];
+            *laser += dt_sub * laser_power[k];
+            *boundary += dt_sub * boundary_flow[k];
+            *t = temperature_from_enthalpy(*e, heat_capacity[k], melting_point[k], latent_heat[k]);
+            *m |= *t >= melting_point[k];
+        };
+        if crate::worth_parallel(n) {
+            let own = enthalpy
+                .par_iter_mut()
+                .zip(temperature.par_iter_mut())
+                .zip(melted.par_iter_mut());
+            own.zip(
+                laser_energy
+                    .par_iter_mut()
+                    .zip(boundary_energy.par_iter_mut()),
+            )
+            .enumerate()
+            .for_each(update);
+        } else {
+            let own = enthalpy
+                .iter_mut()
+                .zip(temperature.iter_mut())
+                .zip(melted.iter_mut());
+            own.zip(laser_energy.iter_mut().zip(boundary_energy.iter_mut()))
+                .enumerate()
+                .for_each(update);
+        }
+    }
+    state.substeps = substeps;
+    state.max_substeps = state.max_substeps.max(substeps);
+}
+
+/// Net heat flow into every particle at the current temperatures [W] and its total conductance
+/// G_i (parallel over particles, each summing its contacts in the fixed CSR order). Returns
+/// `max_i G_i / C_i` [1/s].
+fn heat_flows(
+    model: &ThermalModel,
+    walls: &[Wall],
+    particles: &Particles,
+    list: &NeighborList,
+    state: &mut ThermalState,
+) -> f64 {
+    let ThermalState {
+        temperature,
+        conductance,
+        laser_power,
+        heat_flow,
+        total_conductance,
+        boundary_flow,
+        heat_capacity,
+        ..
+    } = state;
+    let temperature = &*temperature;
+    let flow = |(k, ((q, g), boundary)): (usize, ((&mut f64, &mut f64), &mut f64))| -> f64 {
+        let t = temperature[k];
+        let (mut contacts, mut exchange, mut sum) = (0.0, 0.0, 0.0);
+        for inc in list.incident(k) {
+            let h = conductance[inc.pair as usize];
+            if h > 0.0 {
+                contacts += h * (temperature[inc.other as usize] - t);
+                sum += h;
+            }
+        }
+        let material = &model.materials[usize::from(particles.material[k])];
+        let area = losses::sphere_area(particles.radius[k]);
+        for (w, wall) in walls.iter().enumerate() {
+            if let Some(t_wall) = model.wall_temperatures[w] {
+                let h = wall_conductance(model, particles, k, w, wall);
+                exchange += h * (t_wall - t);
+                sum += h;
+            }
+        }
+        if let Some((h, t_gas)) = model.convection {
+            exchange += losses::convection(h, area, t, t_gas);
+            sum += h * area;
+        }
+        if let Some(environment) = model.radiation {
+            exchange += losses::radiation(material.emissivity, area, t, environment);
+            // Linearised at max(T, T_m, T_env): a laser may heat the particle within the step.
+            sum += losses::radiation_conductance(
+                material.emissivity,
+                area,
+                t.max(material.melting_point),
+                environment,
+            );
+        }
+        *boundary = exchange;
+        *q = contacts + exchange + laser_power[k];
+        *g = sum;
+        sum / heat_capacity[k]
+    };
+    if crate::worth_parallel(temperature.len()) {
+        let out = heat_flow
+            .par_iter_mut()
+            .zip(total_conductance.par_iter_mut())
+            .zip(boundary_flow.par_iter_mut());
+        out.enumerate().map(flow).reduce(|| 0.0, f64::max)
+    } else {
+        let out = heat_flow
+            .iter_mut()
+            .zip(total_conductance.iter_mut())
+            .zip(boundary_flow.iter_mut());
+        out.enumerate().map(flow).fold(0.0, f64::max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn enthalpy_and_temperature_are_inverse_outside_the_plateau() {
+        let (c, tm, l) = (1e-3, 1700.0, 0.5);
+        for t in [300.0, 1699.0, 1701.0, 2500.0] {
+            let e = enthalpy_from_temperature(t, c, tm, l);
+            assert!((temperature_from_enthalpy(e, c, tm, l) - t).abs() < 1e-9);
+        }
+        // On the plateau the temperature is pinned while the melt fraction grows.
+        let start = c * tm;
+        for f in [0.0, 0.3, 1.0] {
+            assert_eq!(temperature_from_enthalpy(start + f * l, c, tm, l), tm);
+            assert!((melt_fraction(start + f * l, c, tm, l) - f).abs() < 1e-12);
+        }
+    }
+}

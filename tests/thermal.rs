@@ -1,0 +1,345 @@
+//! Lumped heat transfer against closed forms: convective and radiative cooling of one sphere,
+//! linear heating and the latent-heat plateau, two-sphere equilibration with both conduction
+//! models, heat conservation in a bed, and a stiff network (H dt / C = 100).
+
+mod common;
+
+use am_sim::simulation::Simulation;
+use am_sim::thermal::losses::{STEFAN_BOLTZMANN, sphere_area};
+
+const R: f64 = 1e-4;
+const RHO: f64 = 8000.0;
+const CP: f64 = 500.0;
+
+fn capacity(radius: f64) -> f64 {
+    RHO * 4.0 / 3.0 * std::f64::consts::PI * radius.powi(3) * CP
+}
+
+/// One resting sphere with the given `[thermal]` body and material extras.
+fn one_sphere(
+    dt: f64,
+    duration: f64,
+    thermal: &str,
+    material_extra: &str,
+    extra: &str,
+) -> Simulation {
+    common::simulation(&format!(
+        r#"
+[scene]
+version = 1
+[simulation]
+dt_s = {dt:e}
+duration_s = {duration:e}
+[materials.steel]
+density_kg_m3 = {RHO:e}
+youngs_modulus_pa = 2e11
+poisson_ratio = 0.3
+specific_heat_j_kg_k = {CP:e}
+thermal_conductivity_w_m_k = 20
+melting_point_k = 1700
+{material_extra}
+[contact]
+model = "hertz"
+damping_ratio = 0.0
+[thermal]
+{thermal}
+{extra}
+[[particles]]
+position_m = [0.0, 0.0, 0.0]
+radius_m = {R:e}
+material = "steel"
+"#
+    ))
+}
+
+fn temperature(sim: &Simulation, k: usize) -> f64 {
+    sim.thermal.as_ref().unwrap().temperature[k]
+}
+
+#[test]
+fn convective_cooling_follows_the_exponential() {
+    let (h, t_gas, t0) = (5e3, 300.0, 1000.0);
+    let tau = capacity(R) / (h * sphere_area(R));
+    // dt = τ/2e4: explicit Euler's relative error in the excess temperature grows as
+    // (t/τ)·(dt/2τ), i.e. 5e-5 at t = 2τ.
+    let dt = tau / 2e4;
+    let thermal = format!(
+        "initial_temperature_k = {t0}\nconduction = \"none\"\n[thermal.convection]\nheat_transfer_coefficient_w_m2_k = {h:e}\ngas_temperature_k = {t_gas}"
+    );
+    let mut sim = one_sphere(dt, 2.0 * tau, &thermal, "", "");
+    let mut worst: f64 = 0.0;
+    for _ in 0..sim.model.steps {
+        sim.step();
+        let exact = t_gas + (t0 - t_gas) * (-sim.time / tau).exp();
+        worst = worst.max((temperature(&sim, 0) - exact).abs() / exact);
+    }
+    eprintln!("convection: worst relative error {worst:.2e}");
+    assert!(worst < 1e-4, "{worst}");
+}
+
+#[test]
+fn radiative_cooling_follows_the_closed_form() {
+    // dT/dt = −k T⁴ with T_env = 0: T(t) = (T0⁻³ + 3 k t)^(−1/3), k = ε σ A / C.
+    let (emissivity, t0) = (0.8, 2000.0);
+    let k = emissivity * STEFAN_BOLTZMANN * sphere_area(R) / capacity(R);
+    let time_to_half = (1.0 / (t0 / 2.0_f64).powi(3) - 1.0 / t0.powi(3)) / (3.0 * k);
+    let dt = time_to_half / 2e4;
+    let thermal = format!(
+        "initial_temperature_k = {t0}\nconduction = \"none\"\n[thermal.radiation]\nenvironment_temperature_k = 0.0"
+    );
+    let mut sim = one_sphere(
+        dt,
+        time_to_half,
+        &thermal,
+        &format!("emissivity = {emissivity}"),
+        "",
+    );
+    let mut worst: f64 = 0.0;
+    for _ in 0..sim.model.steps {
+        sim.step();
+        let exact = (1.0 / t0.powi(3) + 3.0 * k * sim.time).powf(-1.0 / 3.0);
+        worst = worst.max((temperature(&sim, 0) / exact - 1.0).abs());
+    }
+    eprintln!(
+        "radiation: worst relative error {worst:.2e}, T_end = {}",
+        temperature(&sim, 0)
+    );
+    assert!((temperature(&sim, 0) / (t0 / 2.0) - 1.0).abs() < 1e-4);
+    assert!(worst < 1e-4, "{worst}");
+}
+
+#[test]
+fn constant_power_heats_linearly_and_the_latent_heat_holds_a_plateau() {
+    let latent = 2.7e5;
+    let laser = "[laser]\npower_w = 5.0\nspot_radius_m = 2e-4\n[laser.path]\nkind = \"stationary\"\nposition_m = [0.0, 0.0]\nduration_s = 1.0";
+    let dt = 2e-6;
+    let mut sim = one_sphere(
+        dt,
+        0.5,
+        "initial_temperature_k = 300\nconduction = \"none\"",
+        &format!("latent_heat_j_kg = {latent:e}\nabsorptivity = 0.5"),
+        laser,
+    );
+    let c = capacity(R);
+    let mass_latent = c / CP * latent;
+    sim.step();
+    let power = sim.thermal.as_ref().unwrap().laser_power[0];
+    assert!(power > 0.0 && power <= 0.5 * 5.0, "absorbed {power} W");
+    let (mut plateau_start, mut plateau_end) = (None, None);
+    let mut linear_error: f64 = 0.0;
+    while sim.step < sim.model.steps {
+        sim.step();
+        let t = temperature(&sim, 0);
+        if t < 1700.0 {
+            // Solid: T = T0 + P t / C (exact for a constant source, up to round-off).
+            linear_error = linear_error.max((t - (300.0 + power * sim.time / c)).abs() / t);
+        }
+        if t >= 1700.0 && plateau_start.is_none() {
+            plateau_start = Some(sim.time);
+        }
+        if t > 1700.0 && plateau_end.is_none() {
+            plateau_end = Some(sim.time);
+            break;
+        }
+    }
+    let duration = plateau_end.expect("melted through") - plateau_start.expect("reached T_m");
+    let expected = mass_latent / power;
+    eprintln!(
+        "plateau {duration:.6e} s, m L / P = {expected:.6e} s; linear heating error {linear_error:.1e}"
+    );
+    assert!(linear_error < 1e-9);
+    // The plateau is resolved to ±dt at each end: 2 dt ≪ 1 % of it.
+    assert!(
+        (duration / expected - 1.0).abs() < 1e-2,
+        "{duration} vs {expected}"
+    );
+}
+
+/// Two spheres of radii `ra`, `rb` held bonded at their equilibrium overlap (zero force), with
+/// temperatures `ta`, `tb`. Returns the simulation.
+const YOUNGS_PAIR: f64 = 1e3;
+
+fn bonded_pair(
+    ra: f64,
+    rb: f64,
+    conductivity: f64,
+    conduction: &str,
+    dt: f64,
+    duration: f64,
+) -> Simulation {
+    // α = 1, k_adh chosen for δ_eq = 1 % of r*: at δ_eq the bonded force is zero, so the pair
+    // rests there and the overlap (hence H) stays fixed. A tiny Young's modulus (1 kPa) makes the
+    // bond oscillation period (≈ 0.1 s) far longer than any dt used here, so round-off in the
+    // zero force cannot grow.
+    let r_star = ra * rb / (ra + rb);
+    let e_star = YOUNGS_PAIR / (2.0 * (1.0 - 0.09));
+    let overlap = 0.01 * r_star;
+    let k_adh =
+        am_sim::contact::bond::adhesion_stiffness_for_equilibrium(e_star, r_star, 1.0, overlap);
+    common::simulation(&format!(
+        r#"
+[scene]
+version = 1
+[simulation]
+dt_s = {dt:e}
+duration_s = {duration:e}
+[materials.steel]
+density_kg_m3 = {RHO:e}
+youngs_modulus_pa = {YOUNGS_PAIR:e}
+poisson_ratio = 0.3
+specific_heat_j_kg_k = {CP:e}
+thermal_conductivity_w_m_k = {conductivity:e}
+melting_point_k = 1e5
+[contact]
+model = "hertz"
+damping_ratio = 0.0
+[bond]
+adhesion_exponent = 1.0
+adhesion_stiffness = {k_adh:e}
+damping_ratio = 1.0
+criterion = "always"
+[thermal]
+initial_temperature_k = 300
+conduction = "{conduction}"
+[[particles]]
+position_m = [0.0, 0.0, 0.0]
+radius_m = {ra:e}
+material = "steel"
+[[particles]]
+position_m = [{x:e}, 0.0, 0.0]
+radius_m = {rb:e}
+material = "steel"
+"#,
+        x = ra + rb - overlap
+    ))
+}
+
+#[test]
+fn two_spheres_equilibrate_with_the_reduced_capacity_time_constant() {
+    let (ra, rb, k): (f64, f64, f64) = (1e-4, 0.7e-4, 20.0);
+    let r_star = ra * rb / (ra + rb);
+    let overlap = 0.01 * r_star;
+    let a = (r_star * overlap).sqrt();
+    let (ca, cb) = (capacity(ra), capacity(rb));
+    let reduced = ca * cb / (ca + cb);
+    for (model, h) in [
+        ("batchelor_obrien", 2.0 * k * a),
+        (
+            "thermal_pipe",
+            k * std::f64::consts::PI * a * a / (ra + rb - overlap),
+        ),
+    ] {
+        let tau = reduced / h;
+        let dt = tau / 1e4; // Euler's relative error in τ ≈ dt/(2τ) = 5e-5
+        let mut sim = bonded_pair(ra, rb, k, model, dt, tau);
+        let thermal = sim.thermal.as_mut().unwrap();
+        thermal.set_temperature(0, 1000.0);
+        let e0 = thermal.total_enthalpy();
+        for _ in 0..sim.model.steps {
+            sim.step();
+        }
+        let gap = temperature(&sim, 0) - temperature(&sim, 1);
+        let measured = -sim.time / (gap / 700.0).ln();
+        eprintln!("{model}: τ = {measured:.6e} s, expected {tau:.6e} s");
+        assert!(
+            (measured / tau - 1.0).abs() < 1e-3,
+            "{model}: {measured} vs {tau}"
+        );
+        let e1 = sim.thermal.as_ref().unwrap().total_enthalpy();
+        assert!((e1 / e0 - 1.0).abs() < 1e-13, "{model}: heat not conserved");
+    }
+}
+
+#[test]
+fn stiff_network_stays_bounded_and_reaches_the_mixed_temperature() {
+    // A conductivity of 2e4 W/(m·K) and dt chosen so that H dt / C* = 100, C* = C_a C_b/(C_a + C_b):
+    // an explicit step would overshoot by a factor of ~100; sub-cycling must keep every
+    // temperature within [300, 1300] K and land on the capacity-weighted mean.
+    let (ra, rb, k): (f64, f64, f64) = (1e-4, 0.7e-4, 2e4);
+    let r_star = ra * rb / (ra + rb);
+    let a = (r_star * 0.01 * r_star).sqrt();
+    let h = 2.0 * k * a;
+    let (ca, cb) = (capacity(ra), capacity(rb));
+    let reduced = ca * cb / (ca + cb);
+    let dt = 100.0 * reduced / h;
+    let mut sim = bonded_pair(ra, rb, k, "batchelor_obrien", dt, 50.0 * dt);
+    sim.thermal.as_mut().unwrap().set_temperature(0, 1300.0);
+    let mixed = (ca * 1300.0 + cb * 300.0) / (ca + cb);
+    for _ in 0..sim.model.steps {
+        sim.step();
+        for k in 0..2 {
+            let t = temperature(&sim, k);
+            assert!(
+                (300.0..=1300.0).contains(&t),
+                "overshoot: T{k} = {t} at step {}",
+                sim.step
+            );
+        }
+    }
+    let state = sim.thermal.as_ref().unwrap();
+    eprintln!(
+        "stiff: {} substeps per step, T = {:?}",
+        state.max_substeps, state.temperature
+    );
+    assert!(
+        state.max_substeps >= 100,
+        "sub-cycling must resolve H dt / C = 100"
+    );
+    for k in 0..2 {
+        assert!(
+            (temperature(&sim, k) / mixed - 1.0).abs() < 1e-9,
+            "T{k} = {} vs {mixed}",
+            temperature(&sim, k)
+        );
+    }
+}
+
+#[test]
+fn an_isolated_bed_conserves_its_heat() {
+    // 1000 spheres settled in an adiabatic box with a vertical temperature gradient: conduction
+    // only moves heat around. 1e5 steps; each step adds round-off of ~1e-16 of the total.
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/column.toml"))
+        .unwrap();
+    let text = text
+        .replace("max_corner_m = [0.0220, 0.0220, 0.0440]", "max_corner_m = [0.0220, 0.0220, 0.0220]")
+        .replace("duration_s = 0.1", "duration_s = 0.5")
+        .replace(
+            "poisson_ratio = 0.3",
+            // A copper-like conductivity makes the contact time constants (~0.1 s) short enough
+            // for heat to spread visibly within the 0.5 s run.
+            "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 800\nthermal_conductivity_w_m_k = 400\nmelting_point_k = 1900",
+        )
+        .replace("[output]", "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n[output]");
+    let mut sim = common::simulation(&text);
+    assert_eq!(sim.particles.len(), 1000);
+    for k in 0..1000 {
+        let z = sim.particles.position[k].z;
+        sim.thermal
+            .as_mut()
+            .unwrap()
+            .set_temperature(k, 300.0 + 5e4 * z);
+    }
+    let e0 = sim.thermal.as_ref().unwrap().total_enthalpy();
+    let spread0 = spread(&sim);
+    for _ in 0..100_000 {
+        sim.step();
+    }
+    let e1 = sim.thermal.as_ref().unwrap().total_enthalpy();
+    eprintln!(
+        "bed: heat drift {:.2e}, contacts {}, temperature spread {spread0:.1} → {:.1} K",
+        e1 / e0 - 1.0,
+        sim.diagnostics().contacts,
+        spread(&sim)
+    );
+    assert!((e1 / e0 - 1.0).abs() < 1e-10);
+    assert!(spread(&sim) < 0.9 * spread0, "heat did flow");
+}
+
+/// Standard deviation of the temperatures [K].
+fn spread(sim: &Simulation) -> f64 {
+    let t = &sim.thermal.as_ref().unwrap().temperature;
+    #[allow(clippy::cast_precision_loss)]
+    let n = t.len() as f64;
+    let mean = t.iter().sum::<f64>() / n;
+    (t.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt()
+}
