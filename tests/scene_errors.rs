@@ -194,8 +194,16 @@ const CASES: &[(&str, &str, &[&str])] = &[
     ),
     (
         "radius_m = 1.5e-5\nmaterial = \"steel\"\n[[walls]]",
-        "radius_m = 1.5e-5\nspacing_m = 2e-5\nmaterial = \"steel\"\n[[walls]]",
-        &["lattice[0].spacing_m = 0.00002: must be ≥ 2 × radius_m"],
+        "radius_m = 1.5e-5\nspacing_m = 2.6e-5\nmaterial = \"steel\"\n[[walls]]",
+        &[
+            "lattice[0].spacing_m = 0.000026: must be ≥ 2.7000e-5",
+            "initial overlaps",
+        ],
+    ),
+    (
+        "radius_m = 1.5e-5\nmaterial = \"steel\"\n[[walls]]",
+        "radius_m = 1.5e-5\nspacing_m = 2.9e-5\njitter_m = 1e-7\nmaterial = \"steel\"\n[[walls]]",
+        &["lattice[0].jitter_m = 0.0000001: must be 0 when spacing_m < 2 × radius_m"],
     ),
     (
         "radius_m = 1.5e-5\nmaterial = \"steel\"\n[[walls]]",

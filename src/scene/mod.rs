@@ -192,7 +192,8 @@ pub struct LatticeConfig {
     pub max_corner_m: [f64; 3],
     /// Radius [m], `> 0`.
     pub radius_m: f64,
-    /// Distance between neighbouring lattice sites [m]; default `2 radius_m` (touching).
+    /// Distance between neighbouring lattice sites [m]; default `2 radius_m` (touching). Down to
+    /// `1.8 radius_m` gives a pre-compressed lattice (initial overlaps up to 20 % of the radius).
     pub spacing_m: Option<f64>,
     /// Random displacement of each site, uniform in `[−jitter_m, jitter_m]` per axis [m];
     /// `jitter_m ≤ (spacing − 2 radius)/2` so that no two spheres overlap. Default 0.

@@ -5,6 +5,8 @@ use super::{FORMAT_VERSION, Scene, Violation};
 
 /// Largest number of particles a scene may generate (guards against a unit slip in a lattice box).
 pub const MAX_PARTICLES: u64 = 100_000_000;
+/// Largest initial overlap a lattice may be built with, as a fraction of the radius.
+pub const MAX_INITIAL_OVERLAP: f64 = 0.2;
 /// Largest number of steps a run may take (guards against `dt_s` given in the wrong unit).
 pub const MAX_STEPS: f64 = 1e12;
 
@@ -265,19 +267,31 @@ fn validate_lattice(c: &mut Checker, scene: &Scene, k: usize) -> u64 {
     c.material(scene, &key("material"), &l.material);
     let spacing = l.spacing_m.unwrap_or(2.0 * l.radius_m);
     if let Some(s) = l.spacing_m {
-        if c.finite(&key("spacing_m"), s) && s < 2.0 * l.radius_m {
+        // Below 2r the lattice starts pre-compressed; an initial overlap beyond 20 % of the
+        // radius stores so much elastic energy that the spheres fly apart.
+        let closest = (2.0 - MAX_INITIAL_OVERLAP) * l.radius_m;
+        if c.finite(&key("spacing_m"), s) && s < closest {
             c.fail(
                 key("spacing_m"),
                 s,
                 format!(
-                    "must be ≥ 2 × radius_m = {} so that the spheres do not overlap",
-                    2.0 * l.radius_m
+                    "must be ≥ {closest:.4e} (2 × radius_m less {MAX_INITIAL_OVERLAP} × radius_m): larger initial overlaps blow the lattice apart"
                 ),
+            );
+        }
+        if s < 2.0 * l.radius_m && l.jitter_m > 0.0 {
+            c.fail(
+                key("jitter_m"),
+                l.jitter_m,
+                "must be 0 when spacing_m < 2 × radius_m (a pre-compressed lattice has no room for jitter)",
             );
         }
     }
     // Relative tolerance: a jitter of exactly the documented limit must pass despite round-off.
-    if l.jitter_m > 0.0 && l.jitter_m > (spacing - 2.0 * l.radius_m) / 2.0 * (1.0 + 1e-9) {
+    if spacing >= 2.0 * l.radius_m
+        && l.jitter_m > 0.0
+        && l.jitter_m > (spacing - 2.0 * l.radius_m) / 2.0 * (1.0 + 1e-9)
+    {
         c.fail(
             key("jitter_m"),
             l.jitter_m,
