@@ -1,5 +1,6 @@
 //! One time step of a settled-ish column (`scenes/column.toml`, 2000 spheres after 0.05 s of
-//! settling) and of a larger 16k bed built from the same scene, on the default thread pool.
+//! settling) and of a larger 19k bed built from the same scene, without and with heat conduction
+//! (the cost of the thermal coupling), on the default thread pool.
 //! Run: `cargo bench --bench step`. Reports particle-steps per second as throughput.
 
 use am_sim::model::Model;
@@ -7,7 +8,13 @@ use am_sim::scene::Scene;
 use am_sim::simulation::Simulation;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
-fn column(scale: usize) -> Simulation {
+/// Material keys and section that turn conduction on (316L-like, Batchelor & O'Brien).
+const THERMAL: (&str, &str) = (
+    "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 500\nthermal_conductivity_w_m_k = 18\nmelting_point_k = 1700",
+    "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n[output]",
+);
+
+fn column(scale: usize, thermal: bool) -> Simulation {
     let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/column.toml"))
         .expect("scene");
     // Widen the box (and move the far walls) to get `scale` times more columns of spheres.
@@ -25,6 +32,12 @@ fn column(scale: usize) -> Simulation {
             "point_m = [0.0, 0.0220, 0.0]",
             &format!("point_m = [0.0, {width}, 0.0]"),
         );
+    let text = if thermal {
+        text.replace("poisson_ratio = 0.3", THERMAL.0)
+            .replace("[output]", THERMAL.1)
+    } else {
+        text
+    };
     let scene = Scene::from_toml(&text).expect("valid");
     let (model, particles) = Model::build(&scene);
     let mut sim = Simulation::new(model, particles);
@@ -37,8 +50,20 @@ fn column(scale: usize) -> Simulation {
 fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("step");
     group.sample_size(20);
-    for (name, scale) in [("column2k", 1), ("column16k", 8)] {
-        let mut sim = column(scale);
+    for (name, scale, thermal) in [
+        ("column2k", 1, false),
+        ("column19k", 10, false),
+        ("column19k_conduction", 10, true),
+    ] {
+        let mut sim = column(scale, thermal);
+        if thermal {
+            // A temperature gradient, so that heat actually flows.
+            let heights: Vec<f64> = sim.particles.position.iter().map(|x| x.z).collect();
+            let state = sim.thermal.as_mut().expect("thermal");
+            for (k, z) in heights.iter().enumerate() {
+                state.set_temperature(k, 300.0 + 2e4 * z);
+            }
+        }
         group.throughput(Throughput::Elements(sim.particles.len() as u64));
         group.bench_function(name, |b| b.iter(|| sim.step()));
     }

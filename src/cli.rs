@@ -3,6 +3,8 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
@@ -10,7 +12,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::check;
 use crate::model::Model;
-use crate::output::SeriesWriter;
+use crate::output::Writers;
 use crate::scene::Scene;
 use crate::simulation::{Diagnostics, Simulation};
 
@@ -62,6 +64,16 @@ struct RunArgs {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// Continue the run saved in this HDF5 output file (from its last complete frame); the new
+    /// frames are appended to it.
+    #[arg(long, value_name = "FILE.h5")]
+    restart: Option<PathBuf>,
+}
+
+/// How a run ended without error.
+enum Ending {
+    Finished,
+    Interrupted,
 }
 
 /// Entry point of the binary.
@@ -69,7 +81,7 @@ struct RunArgs {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Some(Command::Check { scene }) => run_check(&scene),
+        Some(Command::Check { scene }) => run_check(&scene).map(|()| Ending::Finished),
         Some(Command::Run(args)) => run(&args),
         None if cli.run.scene.is_some() => run(&cli.run),
         None => Err(
@@ -78,7 +90,9 @@ pub fn main() -> ExitCode {
         ),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(Ending::Finished) => ExitCode::SUCCESS,
+        // 128 + SIGINT, as shells report a program stopped by Ctrl-C.
+        Ok(Ending::Interrupted) => ExitCode::from(130),
         Err(message) => {
             eprintln!("error: {message}");
             ExitCode::FAILURE
@@ -92,6 +106,41 @@ fn load(path: &Path) -> Result<Simulation, String> {
     Ok(Simulation::new(model, particles))
 }
 
+/// Sets up the scene at the state saved in `file` (its last complete frame).
+#[cfg(feature = "hdf5")]
+fn resume(scene_path: &Path, file: &Path) -> Result<Simulation, String> {
+    let scene = Scene::load(scene_path).map_err(|e| e.to_string())?;
+    let (model, mut particles) = Model::build(&scene);
+    let saved = crate::output::hdf5::read_last_frame(file).map_err(|e| e.to_string())?;
+    if saved.id != particles.id {
+        return Err(format!(
+            "{}: its frames hold {} particles, the scene {} builds {}: restart with the scene that made the file",
+            file.display(),
+            saved.id.len(),
+            scene_path.display(),
+            particles.len()
+        ));
+    }
+    particles.position = saved.position;
+    particles.velocity = saved.velocity;
+    let sim = Simulation::resume(model, particles, saved.state)
+        .map_err(|e| format!("{}: {e}", file.display()))?;
+    if sim.step >= sim.model.steps {
+        return Err(format!(
+            "{} already reaches step {} of the scene's {} steps: raise simulation.duration_s to continue",
+            file.display(),
+            sim.step,
+            sim.model.steps
+        ));
+    }
+    Ok(sim)
+}
+
+#[cfg(not(feature = "hdf5"))]
+fn resume(_scene_path: &Path, _file: &Path) -> Result<Simulation, String> {
+    Err("--restart needs HDF5 output: this am-sim was built without the `hdf5` feature".into())
+}
+
 fn run_check(path: &Path) -> Result<(), String> {
     let sim = load(path)?;
     let report = check::report(&sim);
@@ -99,7 +148,7 @@ fn run_check(path: &Path) -> Result<(), String> {
     Ok(())
 }
 
-fn run(args: &RunArgs) -> Result<(), String> {
+fn run(args: &RunArgs) -> Result<Ending, String> {
     let path = args.scene.as_deref().ok_or("no scene given")?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = args.threads {
@@ -113,16 +162,15 @@ fn run(args: &RunArgs) -> Result<(), String> {
         .map_err(|e| format!("cannot start the thread pool: {e}"))?;
     let threads = pool.current_num_threads();
     // Set-up (neighbour list, first forces) already runs on the requested threads.
-    let mut sim = pool.install(|| load(path))?;
-    // Output files are opened last, after every check that can refuse the run.
-    let series_path = sim.model.output.series_csv.clone();
-    let mut series = match &series_path {
-        Some(file) => Some(
-            SeriesWriter::create(file, args.overwrite, sim.thermal.is_some())
-                .map_err(|e| e.to_string())?,
-        ),
-        None => None,
+    let mut sim = match &args.restart {
+        Some(file) => pool.install(|| resume(path, file))?,
+        None => pool.install(|| load(path))?,
     };
+    let scene_text =
+        std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    // Output files are opened last, after every check that can refuse the run.
+    let mut writers = Writers::open(&sim, &scene_text, args.overwrite, args.restart.as_deref())
+        .map_err(|e| e.to_string())?;
 
     let model = &sim.model;
     let report = check::report(&sim);
@@ -131,8 +179,13 @@ fn run(args: &RunArgs) -> Result<(), String> {
     } else {
         format!("{} — ", model.title)
     };
+    let from = if sim.step > 0 {
+        format!(" (resuming at step {})", sim.step)
+    } else {
+        String::new()
+    };
     say!(
-        "am-sim {}: {title}{} particles, {} steps of dt = {:.3e} s ({:.4e} s), {threads} threads",
+        "am-sim {}: {title}{} particles, {} steps of dt = {:.3e} s ({:.4e} s){from}, {threads} threads",
         env!("CARGO_PKG_VERSION"),
         sim.particles.len(),
         model.steps,
@@ -143,27 +196,62 @@ fn run(args: &RunArgs) -> Result<(), String> {
         say!("warning: {w}");
     }
 
-    let (initial, wall) = pool.install(|| run_loop(&mut sim, series.as_mut(), args.quiet))?;
+    // Ctrl-C asks the loop to stop after the current step; the last state is then written.
+    let interrupted = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&interrupted);
+    // A second handler cannot be installed (tests run several loops in one process): the
+    // first one keeps working for its own flag, and this run simply cannot be interrupted.
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
+
+    let outcome = pool.install(|| run_loop(&mut sim, &mut writers, args.quiet, &interrupted));
+    let files = writers.files(&sim);
+    let closed = writers.close().map_err(|e| e.to_string());
+    let (initial, wall, ending) = outcome?;
+    closed?;
     print_summary(&sim, &initial, wall, threads);
-    if let Some(file) = &series_path {
-        say!("time series written to {}", file.display());
+    for line in files {
+        say!("{line}");
     }
-    Ok(())
+    if matches!(ending, Ending::Interrupted) {
+        say!(
+            "interrupted at step {} (t = {:.6e} s): the last state is in the output; continue with --restart",
+            sim.step,
+            sim.time
+        );
+    }
+    Ok(ending)
 }
 
-/// Steps the simulation to the end, writing the series; stops on a non-finite value before
-/// anything invalid is written. Returns the initial diagnostics and the wall time [s].
+/// Steps the simulation to the end, writing frames and series; stops on a non-finite value
+/// before anything invalid is written, and after the current step on Ctrl-C. Returns the
+/// initial diagnostics and the wall time [s].
 fn run_loop(
     sim: &mut Simulation,
-    mut series: Option<&mut SeriesWriter>,
+    writers: &mut Writers,
     quiet: bool,
-) -> Result<(Diagnostics, f64), String> {
+    interrupted: &AtomicBool,
+) -> Result<(Diagnostics, f64, Ending), String> {
     let start = Instant::now();
     let initial = sim.diagnostics();
-    if let Some(s) = series.as_deref_mut() {
-        s.write(&initial, 0.0).map_err(|e| e.to_string())?;
-    }
-    let (steps, every) = (sim.model.steps, sim.model.output.every_steps);
+    let steps = sim.model.steps;
+    let check_and_write = |sim: &Simulation,
+                           writers: &mut Writers,
+                           last: bool|
+     -> Result<(), String> {
+        if !writers.due(sim.step, last) {
+            return Ok(());
+        }
+        if let Some((id, field)) = sim.first_non_finite() {
+            return Err(format!(
+                "step {} (t = {:.6e} s): particle id {id} has a non-finite {field}; the run is stopped and nothing invalid was written (check dt with `am-sim check`)",
+                sim.step, sim.time
+            ));
+        }
+        writers
+            .write(sim, start.elapsed().as_secs_f64(), last)
+            .map_err(|e| e.to_string())
+    };
+    check_and_write(sim, writers, false)?;
     let bar = if quiet {
         ProgressBar::hidden()
     } else {
@@ -175,21 +263,19 @@ fn run_loop(
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    bar.set_position(sim.step);
     let bar_stride = (steps / 1000).max(1);
-    for _ in 0..steps {
+    let mut ending = Ending::Finished;
+    while sim.step < steps {
         sim.step();
-        if sim.step % every == 0 || sim.step == steps {
-            if let Some((id, field)) = sim.first_non_finite() {
-                bar.abandon();
-                return Err(format!(
-                    "step {} (t = {:.6e} s): particle id {id} has a non-finite {field}; the run is stopped and nothing invalid was written (check dt with `am-sim check`)",
-                    sim.step, sim.time
-                ));
-            }
-            if let Some(s) = series.as_deref_mut() {
-                s.write(&sim.diagnostics(), start.elapsed().as_secs_f64())
-                    .map_err(|e| e.to_string())?;
-            }
+        let stop = interrupted.load(Ordering::Relaxed);
+        if let Err(message) = check_and_write(sim, writers, stop || sim.step == steps) {
+            bar.abandon();
+            return Err(message);
+        }
+        if stop {
+            ending = Ending::Interrupted;
+            break;
         }
         if sim.step % bar_stride == 0 {
             bar.set_position(sim.step);
@@ -197,7 +283,7 @@ fn run_loop(
         }
     }
     bar.finish_and_clear();
-    Ok((initial, start.elapsed().as_secs_f64()))
+    Ok((initial, start.elapsed().as_secs_f64(), ending))
 }
 
 #[allow(clippy::cast_precision_loss)]

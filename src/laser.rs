@@ -322,8 +322,10 @@ pub fn scaled_bessel_i0(x: f64) -> f64 {
 /// 50 nm, per step: a cast every ~15 steps instead of every step).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Snapshot {
-    beam: Option<DVec2>,
-    lit: Vec<(usize, DVec3)>,
+    /// Beam axis at the last cast (`None`: laser off).
+    pub beam: Option<DVec2>,
+    /// Lit particles (index) and their positions at the last cast [m].
+    pub lit: Vec<(usize, DVec3)>,
 }
 
 impl Snapshot {

@@ -8,6 +8,7 @@ use glam::{DVec2, DVec3};
 
 use crate::contact::{BondParams, NormalParams, bond, hertz};
 use crate::laser::{self, Laser};
+use crate::output::frame::{Needs, OptionalField};
 use crate::particles::{ParticleInit, Particles};
 use crate::scene::{
     Axis, ConductionConfig, CriterionConfig, LaserConfig, MeltingRule, PathConfig, Scene,
@@ -74,10 +75,56 @@ impl BondCriterion {
 /// What the run writes.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct OutputSettings {
+    /// HDF5 file, if asked for.
+    pub file: Option<PathBuf>,
+    /// Steps between frames (≥ 1).
+    pub frame_every: u64,
+    /// Optional fields written in each frame.
+    pub fields: Vec<OptionalField>,
+    /// Deflate level (0: none).
+    pub deflate: u8,
+    /// Whether frames carry restart data.
+    pub restart: bool,
     /// CSV time series, if asked for.
     pub series_csv: Option<PathBuf>,
-    /// Steps between output rows (≥ 1).
-    pub every_steps: u64,
+    /// Steps between series rows (≥ 1).
+    pub series_every: u64,
+}
+
+impl OutputSettings {
+    fn resolve(scene: &Scene, steps: u64) -> Self {
+        let out = scene.output.as_ref();
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let frame_every = match (out.and_then(|o| o.every_steps), out.and_then(|o| o.every_s)) {
+            (Some(n), _) => n,
+            (None, Some(every)) => ((every / scene.simulation.dt_s).round() as u64).max(1),
+            // 100 frames per run: enough to play in ParaView, small enough to write cheaply.
+            (None, None) => (steps / 100).max(1),
+        };
+        let available = |f: &OptionalField| match f.needs() {
+            Needs::Nothing => true,
+            Needs::Bond => scene.bond.is_some(),
+            Needs::Thermal => scene.thermal.is_some(),
+        };
+        let fields = match out.and_then(|o| o.fields.as_ref()) {
+            Some(names) => OptionalField::ALL
+                .into_iter()
+                .filter(|f| names.iter().any(|n| n == f.name()))
+                .collect(),
+            None => OptionalField::ALL.into_iter().filter(available).collect(),
+        };
+        Self {
+            file: out.and_then(|o| o.file.as_ref()).map(PathBuf::from),
+            frame_every,
+            fields,
+            deflate: out.and_then(|o| o.deflate).unwrap_or(0),
+            restart: out.and_then(|o| o.restart).unwrap_or(true),
+            series_csv: out.and_then(|o| o.series_csv.as_ref()).map(PathBuf::from),
+            series_every: out
+                .and_then(|o| o.series_every_steps)
+                .unwrap_or(frame_every),
+        }
+    }
 }
 
 /// Resolved, immutable run parameters.
@@ -223,7 +270,6 @@ impl Model {
             .iter()
             .copied()
             .fold(f64::INFINITY, f64::min);
-        let output = scene.output.as_ref();
         let model = Self {
             title: scene.scene.title.clone(),
             dt: sim.dt_s,
@@ -243,14 +289,7 @@ impl Model {
             thermal: scene.thermal.as_ref().map(|t| thermal_model(scene, t)),
             laser: scene.laser.as_ref().map(|l| laser(l, smallest_radius)),
             expected_impact_speed: sim.expected_impact_speed_m_s,
-            output: OutputSettings {
-                series_csv: output
-                    .and_then(|o| o.series_csv.as_ref())
-                    .map(PathBuf::from),
-                every_steps: output
-                    .and_then(|o| o.every_steps)
-                    .unwrap_or((steps / 1000).max(1)),
-            },
+            output: OutputSettings::resolve(scene, steps),
             pair_params,
             wall_params,
         };
@@ -288,8 +327,8 @@ fn thermal_model(scene: &Scene, config: &ThermalConfig) -> ThermalModel {
             .map(|r| r.environment_temperature_k),
         wall_temperatures: scene.walls.iter().map(|w| w.temperature_k).collect(),
         initial_temperature: config.initial_temperature_k,
-        // θ = 1/2: half the largest monotone substep, a margin for conductances and radiation
-        // that grow within a step.
+        // θ = 1/2: half the largest monotone substep, a margin for the radiation conductance,
+        // which grows with a temperature that rises within the step (contact ones are fixed).
         substep_fraction: config.substep_fraction.unwrap_or(0.5),
     }
 }

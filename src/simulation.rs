@@ -40,6 +40,38 @@ pub struct Simulation {
     pub time: f64,
 }
 
+/// What a resumed run needs beyond positions and velocities (see [`Simulation::restart_state`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RestartState {
+    /// Steps taken.
+    pub step: u64,
+    /// Forces of the last step [N].
+    pub force: Vec<glam::DVec3>,
+    /// Bonded pairs as (id_lo, id_hi).
+    pub bonded: Vec<(u64, u64)>,
+    /// Thermal state, for scenes with `[thermal]`.
+    pub thermal: Option<ThermalRestart>,
+    /// The laser's last ray cast, for scenes with `[laser]`.
+    pub laser: Option<laser::Snapshot>,
+}
+
+/// Thermal part of [`RestartState`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ThermalRestart {
+    /// Enthalpy [J].
+    pub enthalpy: Vec<f64>,
+    /// Latched melting flags.
+    pub melted: Vec<bool>,
+    /// Laser power of the last cast [W].
+    pub laser_power: Vec<f64>,
+    /// Laser energy absorbed so far, per particle [J].
+    pub laser_energy: Vec<f64>,
+    /// Boundary heat so far, per particle [J].
+    pub boundary_energy: Vec<f64>,
+    /// Most substeps in one step so far.
+    pub max_substeps: u32,
+}
+
 /// Quantities measured on the current state (all summed sequentially: reproducible).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Diagnostics {
@@ -118,6 +150,152 @@ impl Simulation {
         sim.compute_forces();
         sim.update_conductances();
         sim
+    }
+
+    /// Everything beyond positions and velocities that the next step depends on, so that a run
+    /// resumed from it continues bit for bit (see [`Simulation::resume`]).
+    #[must_use]
+    pub fn restart_state(&self) -> RestartState {
+        RestartState {
+            step: self.step,
+            force: self.particles.force.clone(),
+            bonded: self.bonds(),
+            thermal: self.thermal.as_ref().map(|t| ThermalRestart {
+                enthalpy: t.enthalpy.clone(),
+                melted: t.melted.clone(),
+                laser_power: t.laser_power.clone(),
+                laser_energy: t.laser_energy.clone(),
+                boundary_energy: t.boundary_energy.clone(),
+                max_substeps: t.max_substeps,
+            }),
+            laser: self
+                .model
+                .laser
+                .as_ref()
+                .map(|_| self.laser_snapshot.clone()),
+        }
+    }
+
+    /// Continues a run: `particles` carry the saved positions and velocities (same ids, same
+    /// order as the scene builds them), `state` the rest. Forces are not recomputed (they were
+    /// computed with the half-step velocities of velocity Verlet; recomputing them with v(t)
+    /// would change the next step) and no bond is formed or broken here.
+    ///
+    /// # Errors
+    /// A message if the saved state does not fit the scene (array lengths).
+    pub fn resume(model: Model, particles: Particles, state: RestartState) -> Result<Self, String> {
+        let n = particles.len();
+        if state.force.len() != n {
+            return Err(format!(
+                "restart data has {} forces for {n} particles",
+                state.force.len()
+            ));
+        }
+        let thermal = match (&model.thermal, state.thermal) {
+            (Some(thermal_model), Some(saved)) => {
+                let mut t = ThermalState::new(thermal_model, &particles);
+                if saved.enthalpy.len() != n || saved.melted.len() != n {
+                    return Err(format!(
+                        "restart data has {} temperatures for {n} particles",
+                        saved.enthalpy.len()
+                    ));
+                }
+                for k in 0..n {
+                    t.enthalpy[k] = saved.enthalpy[k];
+                    t.temperature[k] = thermal::temperature_from_enthalpy(
+                        saved.enthalpy[k],
+                        t.heat_capacity[k],
+                        t.melting_point[k],
+                        t.latent_heat[k],
+                    );
+                }
+                t.melted = saved.melted;
+                t.laser_power = saved.laser_power;
+                t.laser_energy = saved.laser_energy;
+                t.boundary_energy = saved.boundary_energy;
+                t.max_substeps = saved.max_substeps;
+                Some(t)
+            }
+            (None, None) => None,
+            (Some(_), None) => {
+                return Err(
+                    "the scene has [thermal] but the restart data has no temperatures".into(),
+                );
+            }
+            (None, Some(_)) => {
+                return Err(
+                    "the restart data has temperatures but the scene has no [thermal]".into(),
+                );
+            }
+        };
+        let mut sim = Self {
+            neighbors: NeighborList::new(model.skin),
+            model,
+            particles,
+            bond_states: Vec::new(),
+            pair_results: Vec::new(),
+            thermal,
+            laser_snapshot: state.laser.unwrap_or_default(),
+            step: state.step,
+            time: 0.0,
+        };
+        #[allow(clippy::cast_precision_loss)]
+        let time = sim.step as f64 * sim.model.dt;
+        sim.time = time;
+        sim.particles.force = state.force;
+        sim.rebuild_neighbors();
+        let bonded: std::collections::HashSet<(u64, u64)> = state.bonded.into_iter().collect();
+        for p in 0..sim.neighbors.pairs.len() {
+            if bonded.contains(&sim.neighbors.key(p)) {
+                sim.bond_states[p] = BondState::Bonded;
+            }
+        }
+        // Overlaps for the diagnostics of the first row; the next step recomputes everything.
+        for (p, &[a, b]) in sim.neighbors.pairs.iter().enumerate() {
+            let (_, overlap) = forces::pair_geometry(&sim.particles, a as usize, b as usize);
+            sim.pair_results[p] = PairResult {
+                force_on_first: glam::DVec3::ZERO,
+                overlap,
+            };
+        }
+        sim.update_conductances();
+        Ok(sim)
+    }
+
+    /// Bonded pairs as (index a, index b, overlap [m], normal force [N], positive when repulsive).
+    #[must_use]
+    pub fn bonded_pairs(&self) -> Vec<(usize, usize, f64, f64)> {
+        self.neighbors
+            .pairs
+            .iter()
+            .zip(self.pair_results.iter().zip(&self.bond_states))
+            .filter(|(_, (_, state))| **state == BondState::Bonded)
+            .map(|(&[a, b], (result, _))| {
+                let (a, b) = (a as usize, b as usize);
+                let (normal, _) = forces::pair_geometry(&self.particles, a, b);
+                (a, b, result.overlap, -result.force_on_first.dot(normal))
+            })
+            .collect()
+    }
+
+    /// Number of contacts (particles and walls) of every particle.
+    #[must_use]
+    pub fn contact_counts(&self) -> Vec<u64> {
+        let mut counts = vec![0u64; self.particles.len()];
+        for (&[a, b], result) in self.neighbors.pairs.iter().zip(&self.pair_results) {
+            if result.overlap > 0.0 {
+                counts[a as usize] += 1;
+                counts[b as usize] += 1;
+            }
+        }
+        for (k, count) in counts.iter_mut().enumerate() {
+            for w in 0..self.model.walls.len() {
+                if forces::wall_overlap(&self.model, &self.particles, k, w) > 0.0 {
+                    *count += 1;
+                }
+            }
+        }
+        counts
     }
 
     fn rebuild_neighbors(&mut self) {

@@ -44,7 +44,7 @@ fn run_writes_the_series_and_reports_the_bond() {
     let mut lines = csv.lines();
     assert_eq!(
         lines.next().unwrap(),
-        am_sim::output::SERIES_COLUMNS.join(",")
+        am_sim::output::SERIES_COLUMNS.map(|c| c.name).join(",")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len(), 1001, "t = 0 and every 10 steps of 10000");

@@ -220,6 +220,44 @@ const CASES: &[(&str, &str, &[&str])] = &[
         "version = 2",
         &["scene.version = 2", "version 1"],
     ),
+    (
+        "every_steps = 10",
+        "every_steps = 10\nfields = [\"velocity\"]",
+        &["output.fields[0] = \"velocity\": is always written"],
+    ),
+    (
+        "every_steps = 10",
+        "every_steps = 10\nfields = [\"temprature\"]",
+        &[
+            "output.fields[0] = \"temprature\": unknown field",
+            "\"temperature\"",
+        ],
+    ),
+    (
+        "every_steps = 10",
+        "every_steps = 10\nfields = [\"temperature\"]",
+        &["output.fields[0] = \"temperature\": needs a [thermal] section"],
+    ),
+    (
+        "every_steps = 10",
+        "every_steps = 10\nfields = [\"bond_force\"]",
+        &["output.fields = \"bond_force\": needs \"bonds\" in the list too"],
+    ),
+    (
+        "every_steps = 10",
+        "every_steps = 10\nevery_s = 1e-4",
+        &["output.every_s = 0.0001: give either every_steps or every_s"],
+    ),
+    (
+        "every_steps = 10",
+        "every_steps = 10\ndeflate = 10",
+        &["output.deflate = 10: must be 0 (none) to 9"],
+    ),
+    (
+        "every_steps = 10",
+        "every_steps = 10\nfile = \"\"",
+        &["output.file = \"\": must be a file name"],
+    ),
 ];
 
 /// Changes to BASE that give it a thermal model and a laser (valid).

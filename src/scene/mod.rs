@@ -227,10 +227,24 @@ pub struct WallConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OutputConfig {
-    /// CSV file with one row per output step (time, energies, contacts, bonds, overlaps).
-    pub series_csv: Option<String>,
-    /// Steps between two rows, `≥ 1`; default about 1000 rows per run.
+    /// HDF5 file of frames, series and restart data, with an XDMF companion `<stem>.xmf`
+    /// (relative to the working directory).
+    pub file: Option<String>,
+    /// Steps between two frames, `≥ 1`; or give `every_s`. Default: 100 frames per run.
     pub every_steps: Option<u64>,
+    /// Simulated time between two frames [s], `> 0` (rounded to whole steps).
+    pub every_s: Option<f64>,
+    /// Optional per-particle and per-bond fields to write (`id`, `position`, `velocity` and
+    /// `radius` always are); default: every field the scene has.
+    pub fields: Option<Vec<String>>,
+    /// Deflate level 0-9 of the frame datasets; default 0 (no compression: fastest).
+    pub deflate: Option<u8>,
+    /// Write restart data with every frame (`--restart` needs it); default true.
+    pub restart: Option<bool>,
+    /// CSV file with the time series (same columns as the HDF5 `/series`).
+    pub series_csv: Option<String>,
+    /// Steps between two series rows, `≥ 1`; default: the frame cadence.
+    pub series_every_steps: Option<u64>,
 }
 
 impl Scene {
@@ -334,7 +348,8 @@ pub struct LaserConfig {
     /// Time at which the scan path starts [s], `≥ 0`; default 0.
     #[serde(default)]
     pub start_time_s: f64,
-    /// Side of the ray-casting cells [m], `> 0`; default a tenth of the smallest radius.
+    /// Side of the ray-casting cells [m], `> 0`; default a tenth of the smallest radius, but no
+    /// smaller than 6w/1024 (at most 1024 rays across the ±3w window).
     pub raster_cell_m: Option<f64>,
     /// `[laser.path]`: where the beam goes.
     pub path: PathConfig,

@@ -185,12 +185,7 @@ pub fn validate(scene: &Scene) -> Vec<Violation> {
     validate_laser(&mut c, scene);
 
     if let Some(out) = &scene.output {
-        if out.every_steps == Some(0) {
-            c.fail("output.every_steps", 0, "must be ≥ 1");
-        }
-        if out.series_csv.as_deref() == Some("") {
-            c.fail("output.series_csv", "\"\"", "must be a file name");
-        }
+        validate_output(&mut c, scene, out);
     }
     c.violations
 }
@@ -270,7 +265,8 @@ fn validate_lattice(c: &mut Checker, scene: &Scene, k: usize) -> u64 {
         // Below 2r the lattice starts pre-compressed; an initial overlap beyond 20 % of the
         // radius stores so much elastic energy that the spheres fly apart.
         let closest = (2.0 - MAX_INITIAL_OVERLAP) * l.radius_m;
-        if c.finite(&key("spacing_m"), s) && s < closest {
+        // Relative tolerance: exactly 1.8 r must pass despite round-off.
+        if c.finite(&key("spacing_m"), s) && s < closest * (1.0 - 1e-9) {
             c.fail(
                 key("spacing_m"),
                 s,
@@ -337,7 +333,10 @@ fn validate_thermal(c: &mut Checker, scene: &Scene) {
         if bond.melting_rule.is_some() && !melting {
             c.fail(
                 "bond.melting_rule",
-                format!("{:?}", bond.melting_rule),
+                match bond.melting_rule {
+                    Some(super::MeltingRule::Either) => "\"either\"",
+                    _ => "\"both\"",
+                },
                 "only used with bond.criterion = \"melting\"",
             );
         }
@@ -522,6 +521,92 @@ fn validate_laser(c: &mut Checker, scene: &Scene) {
                 );
             }
             c.positive("laser.path.duration_s", *duration_s);
+        }
+    }
+}
+
+/// `[output]`: cadence, fields (known, and available in this scene), compression, files.
+fn validate_output(c: &mut Checker, scene: &Scene, out: &super::OutputConfig) {
+    use crate::output::frame::{Needs, OptionalField};
+    if out.every_steps == Some(0) {
+        c.fail("output.every_steps", 0, "must be ≥ 1");
+    }
+    if out.series_every_steps == Some(0) {
+        c.fail("output.series_every_steps", 0, "must be ≥ 1");
+    }
+    if let Some(every) = out.every_s {
+        c.positive("output.every_s", every);
+        if out.every_steps.is_some() {
+            c.fail(
+                "output.every_s",
+                every,
+                "give either every_steps or every_s, not both",
+            );
+        }
+    }
+    for (key, value) in [
+        ("output.series_csv", &out.series_csv),
+        ("output.file", &out.file),
+    ] {
+        if value.as_deref() == Some("") {
+            c.fail(key, "\"\"", "must be a file name");
+        }
+    }
+    if cfg!(not(feature = "hdf5")) {
+        if let Some(file) = &out.file {
+            c.fail(
+                "output.file",
+                format!("\"{file}\""),
+                "this am-sim was built without HDF5 (cargo feature `hdf5`)",
+            );
+        }
+    }
+    if out.deflate.is_some_and(|d| d > 9) {
+        c.fail(
+            "output.deflate",
+            out.deflate.unwrap_or_default(),
+            "must be 0 (none) to 9 (smallest)",
+        );
+    }
+    let known: Vec<&str> = OptionalField::ALL.iter().map(|f| f.name()).collect();
+    for (k, name) in out.fields.iter().flatten().enumerate() {
+        let key = format!("output.fields[{k}]");
+        match OptionalField::from_name(name) {
+            None if ["id", "position", "velocity", "radius"].contains(&name.as_str()) => {
+                c.fail(
+                    key,
+                    format!("\"{name}\""),
+                    "is always written: list only optional fields",
+                );
+            }
+            None => c.fail(
+                key,
+                format!("\"{name}\""),
+                format!("unknown field; optional fields: {known:?}"),
+            ),
+            Some(field) => match field.needs() {
+                Needs::Bond if scene.bond.is_none() => {
+                    c.fail(key, format!("\"{name}\""), "needs a [bond] section")
+                }
+                Needs::Thermal if scene.thermal.is_none() => {
+                    c.fail(key, format!("\"{name}\""), "needs a [thermal] section")
+                }
+                _ => {}
+            },
+        }
+    }
+    let listed = |f: OptionalField| {
+        out.fields
+            .as_ref()
+            .is_some_and(|v| v.iter().any(|n| n == f.name()))
+    };
+    for f in [OptionalField::BondOverlap, OptionalField::BondForce] {
+        if listed(f) && !listed(OptionalField::Bonds) {
+            c.fail(
+                "output.fields",
+                format!("\"{}\"", f.name()),
+                "needs \"bonds\" in the list too (its rows follow the bond list)",
+            );
         }
     }
 }

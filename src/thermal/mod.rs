@@ -13,7 +13,10 @@
 //! walls, convection, linearised radiation) and `C_i = m_i c_i` its heat capacity. With `θ ≤ 1`
 //! every substep writes each new temperature as a convex combination of old temperatures and the
 //! ambient ones, so no temperature overshoots the range of its neighbours (discrete maximum
-//! principle), however stiff the contact network: the scheme is stable by construction. The usual
+//! principle), however stiff the contact network. The count is fixed from the conductances at the
+//! start of the step; contact conductances do not change within it, and radiation's is taken at
+//! `max(T, T_m, T_env)`, so only a particle heated far past its melting point within one step can
+//! exceed it, which the default θ = 1/2 leaves a factor of two for. The usual
 //! powder bed has `G dt / C ≪ 1` and takes one substep. Heat is exchanged pairwise with
 //! `±H (T_j − T_i)`, which IEEE arithmetic makes exactly antisymmetric, so conduction conserves the
 //! total heat to round-off.

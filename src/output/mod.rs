@@ -1,0 +1,283 @@
+//! Run output: HDF5 frames with an XDMF companion for ParaView (`hdf5` feature, on by default),
+//! the per-step time series (in HDF5 `/series` and optionally CSV), and restart data.
+//! The layout is documented in `docs/output-format.md`. Existing files are never overwritten
+//! unless the user says so. SI units throughout.
+
+pub mod csv;
+pub mod frame;
+#[cfg(feature = "hdf5")]
+pub mod hdf5;
+pub mod xdmf;
+
+use std::path::{Path, PathBuf};
+
+use crate::simulation::{Diagnostics, Simulation};
+
+/// Why an output file could not be written or read.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The file exists and `--overwrite` was not given.
+    #[error("output file {} already exists: remove it, choose another name, or pass --overwrite", .0.display())]
+    Exists(PathBuf),
+    /// An I/O error.
+    #[error("cannot write {}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// An error reported by the HDF5 library.
+    #[error("HDF5 error on {}: {message}", path.display())]
+    Hdf5 {
+        /// The file.
+        path: PathBuf,
+        /// The library's message.
+        message: String,
+    },
+    /// The file is not an am-sim output of a supported version, or lacks data.
+    #[error("{}: {message}", path.display())]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// Element type of a series column.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SeriesKind {
+    /// 64-bit float.
+    F64,
+    /// 64-bit unsigned integer (counts, steps).
+    U64,
+}
+
+/// One column of the time series: name (with its unit as a suffix, as in scene keys), unit and type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SeriesColumn {
+    /// Column name, e.g. `kinetic_energy_j`.
+    pub name: &'static str,
+    /// SI unit (`1` for counts).
+    pub unit: &'static str,
+    /// Element type.
+    pub kind: SeriesKind,
+}
+
+const fn column(name: &'static str, unit: &'static str, kind: SeriesKind) -> SeriesColumn {
+    SeriesColumn { name, unit, kind }
+}
+
+/// Columns of every run.
+pub const SERIES_COLUMNS: [SeriesColumn; 12] = [
+    column("step", "1", SeriesKind::U64),
+    column("time_s", "s", SeriesKind::F64),
+    column("kinetic_energy_j", "J", SeriesKind::F64),
+    column("gravitational_energy_j", "J", SeriesKind::F64),
+    column("elastic_energy_j", "J", SeriesKind::F64),
+    column("mechanical_energy_j", "J", SeriesKind::F64),
+    column("contacts", "1", SeriesKind::U64),
+    column("wall_contacts", "1", SeriesKind::U64),
+    column("bonds", "1", SeriesKind::U64),
+    column("max_overlap_m", "m", SeriesKind::F64),
+    column("max_overlap_ratio", "1", SeriesKind::F64),
+    column("wall_time_s", "s", SeriesKind::F64),
+];
+
+/// Columns added for scenes with `[thermal]` (and only for them).
+pub const THERMAL_COLUMNS: [SeriesColumn; 6] = [
+    column("enthalpy_j", "J", SeriesKind::F64),
+    column("laser_energy_j", "J", SeriesKind::F64),
+    column("boundary_heat_j", "J", SeriesKind::F64),
+    column("max_temperature_k", "K", SeriesKind::F64),
+    column("melted", "1", SeriesKind::U64),
+    column("thermal_substeps", "1", SeriesKind::U64),
+];
+
+/// The columns of a run's series.
+#[must_use]
+pub fn series_columns(thermal: bool) -> Vec<SeriesColumn> {
+    let mut columns = SERIES_COLUMNS.to_vec();
+    if thermal {
+        columns.extend(THERMAL_COLUMNS);
+    }
+    columns
+}
+
+/// One value of a series row.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SeriesValue {
+    /// A float.
+    F64(f64),
+    /// A count.
+    U64(u64),
+}
+
+/// The row of [`series_columns`] for diagnostics `d` taken `wall_time_s` after the start.
+#[must_use]
+pub fn series_row(d: &Diagnostics, wall_time_s: f64) -> Vec<SeriesValue> {
+    use SeriesValue::{F64, U64};
+    let count = |n: usize| U64(n as u64);
+    let mut row = vec![
+        U64(d.step),
+        F64(d.time),
+        F64(d.kinetic_energy),
+        F64(d.gravitational_energy),
+        F64(d.elastic_energy),
+        F64(d.mechanical_energy()),
+        count(d.contacts),
+        count(d.wall_contacts),
+        count(d.bonds),
+        F64(d.max_overlap),
+        F64(d.max_overlap_ratio),
+        F64(wall_time_s),
+    ];
+    if let Some(t) = d.thermal {
+        row.extend([
+            F64(t.enthalpy),
+            F64(t.laser_energy),
+            F64(t.boundary_energy),
+            F64(t.max_temperature),
+            count(t.melted),
+            U64(u64::from(t.substeps)),
+        ]);
+    }
+    row
+}
+
+/// All the writers of a run, with their cadences.
+#[derive(Debug)]
+pub struct Writers {
+    #[cfg(feature = "hdf5")]
+    hdf5: Option<hdf5::OutputFile>,
+    csv: Option<csv::SeriesWriter>,
+    frame_every: u64,
+    series_every: u64,
+    last_frame: Option<u64>,
+    last_row: Option<u64>,
+}
+
+impl Writers {
+    /// Opens the files the scene asks for. With `restart_from`, frames and series go on in that
+    /// HDF5 file (after its last complete frame) and the CSV, if any, is appended to.
+    ///
+    /// # Errors
+    /// [`OutputError::Exists`] for an existing file without `overwrite`; I/O and HDF5 errors.
+    pub fn open(
+        sim: &Simulation,
+        scene_text: &str,
+        overwrite: bool,
+        restart_from: Option<&Path>,
+    ) -> Result<Self, OutputError> {
+        let settings = &sim.model.output;
+        let thermal = sim.thermal.is_some();
+        let csv = match &settings.series_csv {
+            Some(path) if restart_from.is_some() => Some(csv::SeriesWriter::append(path, thermal)?),
+            Some(path) => Some(csv::SeriesWriter::create(path, overwrite, thermal)?),
+            None => None,
+        };
+        #[cfg(feature = "hdf5")]
+        let hdf5 = match (restart_from, &settings.file) {
+            (Some(path), _) => Some(hdf5::OutputFile::open_append(
+                path,
+                thermal,
+                settings.deflate,
+            )?),
+            (None, Some(path)) => Some(hdf5::OutputFile::create(
+                path,
+                overwrite,
+                scene_text,
+                thermal,
+                settings.deflate,
+            )?),
+            (None, None) => None,
+        };
+        #[cfg(not(feature = "hdf5"))]
+        let _ = scene_text;
+        let resumed = restart_from.map(|_| sim.step);
+        Ok(Self {
+            #[cfg(feature = "hdf5")]
+            hdf5,
+            csv,
+            frame_every: settings.frame_every,
+            series_every: settings.series_every,
+            last_frame: resumed,
+            last_row: resumed,
+        })
+    }
+
+    /// Whether anything is due at the current step (`last`: the final step of the run, when a
+    /// frame and a row are always written).
+    #[must_use]
+    pub fn due(&self, step: u64, last: bool) -> bool {
+        let fresh = |done: Option<u64>| done != Some(step);
+        (fresh(self.last_frame) && (last || step % self.frame_every == 0))
+            || (fresh(self.last_row) && (last || step % self.series_every == 0))
+    }
+
+    /// Writes what is due at the current state (see [`Writers::due`]).
+    ///
+    /// # Errors
+    /// I/O and HDF5 errors.
+    pub fn write(
+        &mut self,
+        sim: &Simulation,
+        wall_time_s: f64,
+        last: bool,
+    ) -> Result<(), OutputError> {
+        let step = sim.step;
+        if self.last_row != Some(step) && (last || step % self.series_every == 0) {
+            let d = sim.diagnostics();
+            if let Some(csv) = &mut self.csv {
+                csv.write(&d, wall_time_s)?;
+            }
+            #[cfg(feature = "hdf5")]
+            if let Some(file) = &mut self.hdf5 {
+                file.append_series(&series_row(&d, wall_time_s))?;
+            }
+            self.last_row = Some(step);
+        }
+        if self.last_frame != Some(step) && (last || step % self.frame_every == 0) {
+            #[cfg(feature = "hdf5")]
+            if let Some(file) = &mut self.hdf5 {
+                let settings = &sim.model.output;
+                let restart = settings.restart.then(|| sim.restart_state());
+                file.write_frame(&frame::capture(sim, &settings.fields), restart.as_ref())?;
+            }
+            self.last_frame = Some(step);
+        }
+        Ok(())
+    }
+
+    /// The files being written, for the end-of-run message.
+    #[must_use]
+    pub fn files(&self, sim: &Simulation) -> Vec<String> {
+        let mut files = Vec::new();
+        #[cfg(feature = "hdf5")]
+        if let Some(file) = &self.hdf5 {
+            files.push(format!(
+                "{} frames in {} (ParaView: File > Open {})",
+                file.frame_count(),
+                file.path().display(),
+                file.xdmf_path().display()
+            ));
+        }
+        if let Some(path) = &sim.model.output.series_csv {
+            files.push(format!("time series in {}", path.display()));
+        }
+        files
+    }
+
+    /// Flushes and closes everything.
+    ///
+    /// # Errors
+    /// HDF5 errors.
+    pub fn close(self) -> Result<(), OutputError> {
+        #[cfg(feature = "hdf5")]
+        if let Some(file) = self.hdf5 {
+            file.close()?;
+        }
+        Ok(())
+    }
+}

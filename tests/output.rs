@@ -1,0 +1,240 @@
+//! HDF5 output of the `am-sim` binary: the refusal to overwrite, restart bit for bit, frames
+//! surviving `kill -9` and Ctrl-C. (The in-memory comparison lives in `output_readback.rs`:
+//! HDF5 opens files without close-on-exec, so a file held open by this process would be
+//! inherited, lock and all, by the runs the other tests here spawn.)
+#![cfg(feature = "hdf5")]
+
+mod common;
+
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use am_sim::output::hdf5::read_last_frame;
+
+fn scene_text(name: &str) -> String {
+    std::fs::read_to_string(format!("{}/scenes/{name}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+}
+
+/// `laser_track.toml` shortened to `duration` [s], frames every `every` steps.
+fn short_track(duration: f64, every: u64) -> String {
+    scene_text("laser_track.toml")
+        .replace("duration_s = 3.5e-3", &format!("duration_s = {duration:e}"))
+        .replace("every_steps = 500", &format!("every_steps = {every}"))
+        .replace("series_csv = \"laser_track.csv\"", "")
+}
+
+fn am_sim(dir: &Path, args: &[&str]) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_am-sim"));
+    command
+        .current_dir(dir)
+        .args(args)
+        .args(["--quiet", "--threads", "2"]);
+    command
+}
+
+#[test]
+fn an_existing_output_file_is_refused_and_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("track.toml"), short_track(2e-5, 100)).unwrap();
+    std::fs::write(dir.path().join("laser_track.h5"), "precious").unwrap();
+    let out = am_sim(dir.path(), &["track.toml"]).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("already exists"));
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("laser_track.h5")).unwrap(),
+        "precious"
+    );
+    let again = am_sim(dir.path(), &["track.toml", "--overwrite"])
+        .output()
+        .unwrap();
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    assert_eq!(
+        read_last_frame(&dir.path().join("laser_track.h5"))
+            .unwrap()
+            .state
+            .step,
+        200
+    );
+}
+
+/// Positions, velocities, temperatures (as bits) and bonds of a file's last frame.
+fn fingerprint(path: &Path) -> (Vec<u64>, Vec<(u64, u64)>, u64) {
+    let saved = read_last_frame(path).unwrap();
+    let mut bits: Vec<u64> = saved
+        .position
+        .iter()
+        .chain(&saved.velocity)
+        .flat_map(|v| v.to_array())
+        .map(f64::to_bits)
+        .collect();
+    bits.extend(
+        saved
+            .state
+            .thermal
+            .as_ref()
+            .unwrap()
+            .enthalpy
+            .iter()
+            .map(|e| e.to_bits()),
+    );
+    let mut bonds = saved.state.bonded.clone();
+    bonds.sort_unstable();
+    (bits, bonds, saved.state.step)
+}
+
+#[test]
+fn a_run_of_2t_equals_t_plus_a_restart_of_t_bit_for_bit() {
+    // The laser switches on at 0.2 ms; the restart at 0.5 ms falls in the middle of the track,
+    // with particles melting and bonding on both sides of it.
+    let dir = tempfile::tempdir().unwrap();
+    let full = short_track(1e-3, 500).replace("laser_track.h5", "full.h5");
+    let half = short_track(5e-4, 500).replace("laser_track.h5", "half.h5");
+    std::fs::write(dir.path().join("full.toml"), &full).unwrap();
+    std::fs::write(dir.path().join("half.toml"), &half).unwrap();
+    std::fs::write(
+        dir.path().join("continue.toml"),
+        full.replace("full.h5", "half.h5"),
+    )
+    .unwrap();
+    assert!(
+        am_sim(dir.path(), &["full.toml"])
+            .output()
+            .unwrap()
+            .status
+            .success()
+    );
+    assert!(
+        am_sim(dir.path(), &["half.toml"])
+            .output()
+            .unwrap()
+            .status
+            .success()
+    );
+    let resumed = am_sim(dir.path(), &["continue.toml", "--restart", "half.h5"])
+        .output()
+        .unwrap();
+    assert!(
+        resumed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
+    );
+    assert!(String::from_utf8_lossy(&resumed.stdout).contains("resuming at step 5000"));
+    let (a, b) = (
+        fingerprint(&dir.path().join("full.h5")),
+        fingerprint(&dir.path().join("half.h5")),
+    );
+    assert_eq!(a.2, 10_000);
+    assert!(
+        !a.1.is_empty(),
+        "bonds formed, so the restart carried bond states"
+    );
+    assert_eq!(a, b, "2T and T + restart T differ");
+    // Frames and series continue in the restarted file without gaps or duplicates.
+    let file = hdf5::File::open(dir.path().join("half.h5")).unwrap();
+    let steps: Vec<u64> = file.dataset("series/step").unwrap().read_raw().unwrap();
+    assert_eq!(steps, (0..=20).map(|k| k * 500).collect::<Vec<_>>());
+}
+
+/// Starts a long run and waits until its XDMF file lists at least `frames` frames.
+fn start_and_wait(dir: &Path, frames: usize) -> Child {
+    std::fs::write(dir.join("long.toml"), short_track(3.5e-3, 200)).unwrap();
+    let child = am_sim(dir, &["long.toml"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut child = child;
+    let start = Instant::now();
+    loop {
+        let xmf = std::fs::read_to_string(dir.join("laser_track.xmf")).unwrap_or_default();
+        if xmf.matches("<Grid Name=\"particles_").count() >= frames {
+            return child;
+        }
+        if start.elapsed() > Duration::from_secs(120) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("no frames appeared");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+#[test]
+fn frames_survive_kill_9_and_the_run_can_continue() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = start_and_wait(dir.path(), 3);
+    child.kill().unwrap(); // SIGKILL: no chance to close the file
+    child.wait().unwrap();
+    let saved = read_last_frame(&dir.path().join("laser_track.h5")).unwrap();
+    assert!(
+        saved.frame >= 2 && saved.state.step >= 400,
+        "frame {} step {}",
+        saved.frame,
+        saved.state.step
+    );
+    assert!(saved.position.iter().all(|x| x.is_finite()));
+    // The killed run continues from its last complete frame.
+    std::fs::write(
+        dir.path().join("more.toml"),
+        short_track(3.5e-3, 200).replace(
+            "duration_s = 3.5e-3",
+            &format!("duration_s = {:e}", (saved.state.step + 400) as f64 * 1e-7),
+        ),
+    )
+    .unwrap();
+    let resumed = am_sim(dir.path(), &["more.toml", "--restart", "laser_track.h5"])
+        .output()
+        .unwrap();
+    assert!(
+        resumed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
+    );
+    assert_eq!(
+        read_last_frame(&dir.path().join("laser_track.h5"))
+            .unwrap()
+            .state
+            .step,
+        saved.state.step + 400
+    );
+}
+
+#[test]
+fn ctrl_c_writes_a_last_frame_and_closes_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let child = start_and_wait(dir.path(), 2);
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(130),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("interrupted at step"), "{stdout}");
+    let saved = read_last_frame(&dir.path().join("laser_track.h5")).unwrap();
+    let step: u64 = stdout
+        .split("interrupted at step ")
+        .nth(1)
+        .unwrap()
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert_eq!(
+        saved.state.step, step,
+        "the interrupted step is the last frame"
+    );
+    assert!(step % 200 != 0 || step > 0);
+}

@@ -1,0 +1,116 @@
+//! HDF5 output read back: shapes, attributes and values of the frames, the series and the XDMF
+//! file against the in-memory state of the run that wrote them. Its own test binary, because
+//! HDF5 opens files without close-on-exec: child processes spawned by other tests in the same
+//! binary would inherit this file's lock.
+#![cfg(feature = "hdf5")]
+
+mod common;
+
+use std::path::PathBuf;
+
+use am_sim::output::Writers;
+
+fn scene_text(name: &str) -> String {
+    std::fs::read_to_string(format!("{}/scenes/{name}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+}
+
+/// `laser_track.toml` shortened to `duration` [s], frames every `every` steps.
+fn short_track(duration: f64, every: u64) -> String {
+    scene_text("laser_track.toml")
+        .replace("duration_s = 3.5e-3", &format!("duration_s = {duration:e}"))
+        .replace("every_steps = 500", &format!("every_steps = {every}"))
+        .replace("series_csv = \"laser_track.csv\"", "")
+}
+
+#[test]
+fn frames_hold_the_in_memory_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = short_track(6e-4, 1000);
+    let mut sim = common::simulation(&text);
+    let path: PathBuf = dir.path().join("laser_track.h5");
+    let cwd = std::env::current_dir().unwrap();
+    // Writers resolve the scene's relative file name against the working directory.
+    sim.model.output.file = Some(path.clone());
+    let mut writers = Writers::open(&sim, &text, false, None).unwrap();
+    writers.write(&sim, 0.0, false).unwrap();
+    while sim.step < sim.model.steps {
+        sim.step();
+        writers
+            .write(&sim, 0.0, sim.step == sim.model.steps)
+            .unwrap();
+    }
+    writers.close().unwrap();
+    assert_eq!(std::env::current_dir().unwrap(), cwd);
+
+    let file = hdf5::File::open(&path).unwrap();
+    let text_attr: hdf5::types::VarLenUnicode = file.attr("scene").unwrap().read_scalar().unwrap();
+    assert_eq!(text_attr.as_str(), text);
+    let format: hdf5::types::VarLenUnicode = file.attr("format").unwrap().read_scalar().unwrap();
+    assert_eq!(format.as_str(), "am-sim");
+    let units: hdf5::types::VarLenUnicode = file.attr("units").unwrap().read_scalar().unwrap();
+    assert_eq!(units.as_str(), "SI");
+    let frames = file.group("frames").unwrap();
+    assert_eq!(
+        frames.member_names().unwrap().len(),
+        7,
+        "t = 0 and every 1000 of 6000 steps"
+    );
+    let last = frames.group("000006").unwrap();
+    assert_eq!(
+        last.attr("step").unwrap().read_scalar::<u64>().unwrap(),
+        6000
+    );
+    let n = sim.particles.len();
+    let position: Vec<f64> = last.dataset("position").unwrap().read_raw().unwrap();
+    assert_eq!(last.dataset("position").unwrap().shape(), vec![n, 3]);
+    let flat: Vec<f64> = sim
+        .particles
+        .position
+        .iter()
+        .flat_map(|x| x.to_array())
+        .collect();
+    assert_eq!(position, flat, "positions bit for bit");
+    let temperature: Vec<f64> = last.dataset("temperature").unwrap().read_raw().unwrap();
+    assert_eq!(temperature, sim.thermal.as_ref().unwrap().temperature);
+    let melted: Vec<u8> = last.dataset("melted").unwrap().read_raw().unwrap();
+    assert_eq!(
+        melted.iter().filter(|m| **m == 1).count(),
+        sim.diagnostics().thermal.unwrap().melted
+    );
+    let bonds: Vec<u64> = last.dataset("bonds").unwrap().read_raw().unwrap();
+    let ids = &sim.particles.id;
+    let mut from_file: Vec<(u64, u64)> = bonds
+        .chunks_exact(2)
+        .map(|r| {
+            (
+                ids[r[0] as usize].min(ids[r[1] as usize]),
+                ids[r[0] as usize].max(ids[r[1] as usize]),
+            )
+        })
+        .collect();
+    from_file.sort_unstable();
+    assert!(!from_file.is_empty());
+    assert_eq!(from_file, sim.bonds());
+    let series = file.group("series").unwrap();
+    let steps: Vec<u64> = series.dataset("step").unwrap().read_raw().unwrap();
+    assert_eq!(steps, (0..=6).map(|k| k * 1000).collect::<Vec<_>>());
+    let laser: Vec<f64> = series
+        .dataset("laser_energy_j")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    assert_eq!(
+        *laser.last().unwrap(),
+        sim.diagnostics().thermal.unwrap().laser_energy
+    );
+    // The XDMF companion names existing datasets only.
+    let xmf = std::fs::read_to_string(path.with_extension("xmf")).unwrap();
+    assert_eq!(xmf.matches("<Grid Name=\"particles_").count(), 7);
+    for reference in xmf.split("laser_track.h5:").skip(1) {
+        let dataset = &reference[..reference.find('<').unwrap()];
+        assert!(
+            file.dataset(dataset).is_ok(),
+            "XDMF names missing {dataset}"
+        );
+    }
+}
