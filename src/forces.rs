@@ -16,6 +16,7 @@ use crate::contact::{self, BondState, PairKinematics, hertz};
 use crate::model::Model;
 use crate::neighbor::NeighborList;
 use crate::particles::Particles;
+use crate::thermal::{self, ThermalModel};
 
 /// What a pair contributes, stored per pair slot between the two passes.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -42,18 +43,38 @@ pub fn pair_geometry(particles: &Particles, a: usize, b: usize) -> (DVec3, f64) 
     (normal, particles.radius[a] + particles.radius[b] - distance)
 }
 
-/// Pair pass: fills `results` and updates `states` (both indexed like `list.pairs`).
+/// What the pair pass needs and fills for scenes with `[thermal]`.
+#[derive(Debug)]
+pub struct PairHeat<'a> {
+    /// Thermal parameters.
+    pub model: &'a ThermalModel,
+    /// Latched melting flags (the bond criterion reads them).
+    pub melted: &'a [bool],
+    /// Per pair slot: the contact conductance, written by the pass [W/K].
+    pub conductance: &'a mut [f64],
+}
+
+/// Pair pass: fills `results` and updates `states` (both indexed like `list.pairs`); with
+/// `heat`, also each pair's contact conductance, while the pair's data is at hand.
 pub fn pair_pass(
     model: &Model,
     particles: &Particles,
     list: &NeighborList,
     states: &mut [BondState],
     results: &mut [PairResult],
-    melted: Option<&[bool]>,
+    heat: Option<PairHeat<'_>>,
 ) {
-    let evaluate = |((&[a, b], state), result): ((&[u32; 2], &mut BondState), &mut PairResult)| {
+    let melted = heat.as_ref().map(|h| h.melted);
+    let thermal = heat.as_ref().map(|h| h.model);
+    let evaluate = |&[a, b]: &[u32; 2],
+                    state: &mut BondState,
+                    result: &mut PairResult,
+                    conductance: Option<&mut f64>| {
         let (a, b) = (a as usize, b as usize);
         let (normal, overlap) = pair_geometry(particles, a, b);
+        if let (Some(h), Some(t)) = (conductance, thermal) {
+            *h = thermal::pair_conductance(t, particles, a, b, overlap);
+        }
         if overlap <= 0.0 {
             *state = BondState::Unbonded;
             *result = PairResult {
@@ -78,18 +99,42 @@ pub fn pair_pass(
             overlap,
         };
     };
-    if crate::worth_parallel(list.pairs.len()) {
-        let slots = states.par_iter_mut().zip(results.par_iter_mut());
-        list.pairs
-            .par_iter()
-            .zip(slots)
-            .for_each(|(p, (s, r))| evaluate(((p, s), r)));
-    } else {
-        let slots = states.iter_mut().zip(results.iter_mut());
-        list.pairs
-            .iter()
-            .zip(slots)
-            .for_each(|(p, (s, r))| evaluate(((p, s), r)));
+    let parallel = crate::worth_parallel(list.pairs.len());
+    match (heat, parallel) {
+        (Some(heat), true) => {
+            let slots = states
+                .par_iter_mut()
+                .zip(results.par_iter_mut())
+                .zip(heat.conductance.par_iter_mut());
+            list.pairs
+                .par_iter()
+                .zip(slots)
+                .for_each(|(p, ((s, r), h))| evaluate(p, s, r, Some(h)));
+        }
+        (Some(heat), false) => {
+            let slots = states
+                .iter_mut()
+                .zip(results.iter_mut())
+                .zip(heat.conductance.iter_mut());
+            list.pairs
+                .iter()
+                .zip(slots)
+                .for_each(|(p, ((s, r), h))| evaluate(p, s, r, Some(h)));
+        }
+        (None, true) => {
+            let slots = states.par_iter_mut().zip(results.par_iter_mut());
+            list.pairs
+                .par_iter()
+                .zip(slots)
+                .for_each(|(p, (s, r))| evaluate(p, s, r, None));
+        }
+        (None, false) => {
+            let slots = states.iter_mut().zip(results.iter_mut());
+            list.pairs
+                .iter()
+                .zip(slots)
+                .for_each(|(p, (s, r))| evaluate(p, s, r, None));
+        }
     }
 }
 

@@ -4,11 +4,11 @@
 //! 1. Half kick and drift (velocity Verlet, M.30-M.31).
 //! 2. Rebuild the neighbour list if a particle moved more than half the skin; bond states follow
 //!    their pairs by id.
-//! 3. Pair pass: normal forces of every pair, bond formation and breakage (paper eq. 25).
+//! 3. Pair pass: normal forces of every pair, bond formation and breakage (paper eq. 25), and
+//!    with `[thermal]` each contact's conductance.
 //! 4. Gather: per-particle sum of pair forces in fixed order, plus gravity and walls.
-//! 5. With `[thermal]`: contact conductances from this step's overlaps, laser absorption with the
-//!    beam at mid-step, then the temperatures over dt (M.49); melted flags latch. The bond
-//!    criterion of the next step's pair pass reads them.
+//! 5. With `[thermal]`: laser absorption with the beam at mid-step, then the temperatures over dt
+//!    (M.49); melted flags latch. The bond criterion of the next step's pair pass reads them.
 //! 6. Second half kick (M.32).
 
 use crate::contact::{BondState, hertz};
@@ -148,7 +148,6 @@ impl Simulation {
         };
         sim.rebuild_neighbors();
         sim.compute_forces();
-        sim.update_conductances();
         sim
     }
 
@@ -307,13 +306,24 @@ impl Simulation {
     }
 
     fn compute_forces(&mut self) {
+        let heat = match (&self.model.thermal, &mut self.thermal) {
+            (Some(model), Some(state)) => {
+                state.conductance.resize(self.neighbors.pairs.len(), 0.0);
+                Some(forces::PairHeat {
+                    model,
+                    melted: &state.melted,
+                    conductance: &mut state.conductance,
+                })
+            }
+            _ => None,
+        };
         forces::pair_pass(
             &self.model,
             &self.particles,
             &self.neighbors,
             &mut self.bond_states,
             &mut self.pair_results,
-            self.thermal.as_ref().map(|t| t.melted.as_slice()),
+            heat,
         );
         forces::gather(
             &self.model,
@@ -336,9 +346,9 @@ impl Simulation {
         }
     }
 
-    /// Step 5 of the step order: conductances, laser, temperatures over dt.
+    /// Step 5 of the step order: laser, then temperatures over dt (the pair pass has already
+    /// computed the conductances).
     fn advance_temperatures(&mut self) {
-        self.update_conductances();
         let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) else {
             return;
         };

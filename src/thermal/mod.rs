@@ -237,8 +237,36 @@ impl ThermalState {
     }
 }
 
+/// Conductance of the contact between particles `a` and `b` at `overlap` [m] (M.41, M.42) [W/K];
+/// 0 without overlap.
+#[must_use]
+#[inline]
+pub fn pair_conductance(
+    model: &ThermalModel,
+    particles: &Particles,
+    a: usize,
+    b: usize,
+    overlap: f64,
+) -> f64 {
+    if overlap <= 0.0 {
+        return 0.0;
+    }
+    let (ra, rb) = (particles.radius[a], particles.radius[b]);
+    let ka = model.materials[usize::from(particles.material[a])].conductivity;
+    let kb = model.materials[usize::from(particles.material[b])].conductivity;
+    let contact = conduction::contact_radius(ra * rb / (ra + rb), overlap);
+    match model.conduction {
+        ConductionModel::None => 0.0,
+        ConductionModel::BatchelorObrien => conduction::batchelor_obrien(ka, kb, contact),
+        ConductionModel::ThermalPipe => {
+            conduction::thermal_pipe(ka, kb, ra, rb, contact, ra + rb - overlap)
+        }
+    }
+}
+
 /// Contact conductances of every pair slot from this step's overlaps (parallel over pairs).
-/// `overlap(p)` is the overlap of pair slot p [m] from this step's pair pass.
+/// `overlap(p)` is the overlap of pair slot p [m]. The step computes conductances inside the
+/// force pair pass (one read of each pair's data); this stand-alone pass serves a resumed run.
 pub fn update_conductances(
     model: &ThermalModel,
     particles: &Particles,
@@ -248,23 +276,7 @@ pub fn update_conductances(
 ) {
     conductance.resize(list.pairs.len(), 0.0);
     let law = |(p, (&[a, b], h)): (usize, (&[u32; 2], &mut f64))| {
-        let overlap = overlap(p);
-        let (a, b) = (a as usize, b as usize);
-        *h = if overlap > 0.0 {
-            let (ra, rb) = (particles.radius[a], particles.radius[b]);
-            let ka = model.materials[usize::from(particles.material[a])].conductivity;
-            let kb = model.materials[usize::from(particles.material[b])].conductivity;
-            let contact = conduction::contact_radius(ra * rb / (ra + rb), overlap);
-            match model.conduction {
-                ConductionModel::None => 0.0,
-                ConductionModel::BatchelorObrien => conduction::batchelor_obrien(ka, kb, contact),
-                ConductionModel::ThermalPipe => {
-                    conduction::thermal_pipe(ka, kb, ra, rb, contact, ra + rb - overlap)
-                }
-            }
-        } else {
-            0.0
-        };
+        *h = pair_conductance(model, particles, a as usize, b as usize, overlap(p));
     };
     if crate::worth_parallel(list.pairs.len()) {
         list.pairs
