@@ -146,20 +146,62 @@ pub fn wall_overlap(model: &Model, particles: &Particles, k: usize, w: usize) ->
     particles.radius[k] - (particles.position[k] - wall.point).dot(wall.normal)
 }
 
-/// Gather pass: `particles.force = m g + Σ pair forces (CSR order) + wall forces`.
+/// What the gather pass needs and fills for scenes with `[thermal]`: the first substep's heat
+/// balance (M.47) is summed over the same incidence lists as the forces.
+#[derive(Debug)]
+pub struct GatherHeat<'a> {
+    /// Thermal parameters.
+    pub model: &'a ThermalModel,
+    /// Temperatures at the start of the step [K].
+    pub temperature: &'a [f64],
+    /// Contact conductances of the pair slots [W/K].
+    pub conductance: &'a [f64],
+    /// Absorbed laser power [W].
+    pub laser_power: &'a [f64],
+    /// Heat capacities [J/K].
+    pub heat_capacity: &'a [f64],
+    /// Out: net heat flow [W].
+    pub heat_flow: &'a mut [f64],
+    /// Out: heat flow from walls, gas and surroundings [W].
+    pub boundary_flow: &'a mut [f64],
+    /// Out: total conductance G_i [W/K].
+    pub total_conductance: &'a mut [f64],
+}
+
+/// Gather pass: `particles.force = m g + Σ pair forces (CSR order) + wall forces`; with `heat`,
+/// also each particle's heat flows. Returns `max G_i / C_i` [1/s] (0 without heat).
 pub fn gather(
     model: &Model,
     particles: &mut Particles,
     list: &NeighborList,
     results: &[PairResult],
-) {
+    heat: Option<GatherHeat<'_>>,
+) -> f64 {
     let mut forces = std::mem::take(&mut particles.force);
     let state = &*particles;
-    let sum = |(k, force): (usize, &mut DVec3)| {
+    let inputs = heat.as_ref().map(|h| {
+        (
+            h.model,
+            h.temperature,
+            h.conductance,
+            h.laser_power,
+            h.heat_capacity,
+        )
+    });
+    let sum = |k: usize, force: &mut DVec3, out: Option<(&mut f64, &mut f64, &mut f64)>| -> f64 {
         let mut total = state.mass[k] * model.gravity;
+        let (mut exchange, mut conductance_sum) = (0.0, 0.0);
+        let t = inputs.map_or(0.0, |(_, temperature, ..)| temperature[k]);
         for incidence in list.incident(k) {
             let f = results[incidence.pair as usize].force_on_first;
             total += if incidence.first { f } else { -f };
+            if let Some((_, temperature, conductance, ..)) = inputs {
+                let h = conductance[incidence.pair as usize];
+                if h > 0.0 {
+                    exchange += h * (temperature[incidence.other as usize] - t);
+                    conductance_sum += h;
+                }
+            }
         }
         for w in 0..model.walls.len() {
             let overlap = wall_overlap(model, state, k, w);
@@ -181,11 +223,59 @@ pub fn gather(
             }
         }
         *force = total;
+        match (out, inputs) {
+            (Some((q, boundary, g)), Some((thermal_model, _, _, laser_power, heat_capacity))) => {
+                let (outside, outside_conductance) =
+                    thermal::boundary_heat(thermal_model, &model.walls, state, k, t);
+                *boundary = outside;
+                *q = exchange + outside + laser_power[k];
+                *g = conductance_sum + outside_conductance;
+                *g / heat_capacity[k]
+            }
+            _ => 0.0,
+        }
     };
-    if crate::worth_parallel(forces.len()) {
-        forces.par_iter_mut().enumerate().for_each(sum);
-    } else {
-        forces.iter_mut().enumerate().for_each(sum);
-    }
+    let parallel = crate::worth_parallel(forces.len());
+    let worst = match (heat, parallel) {
+        (Some(h), true) => {
+            let out = h
+                .heat_flow
+                .par_iter_mut()
+                .zip(h.boundary_flow.par_iter_mut())
+                .zip(h.total_conductance.par_iter_mut());
+            forces
+                .par_iter_mut()
+                .zip(out)
+                .enumerate()
+                .map(|(k, (f, ((q, b), g)))| sum(k, f, Some((q, b, g))))
+                .reduce(|| 0.0, f64::max)
+        }
+        (Some(h), false) => {
+            let out = h
+                .heat_flow
+                .iter_mut()
+                .zip(h.boundary_flow.iter_mut())
+                .zip(h.total_conductance.iter_mut());
+            forces
+                .iter_mut()
+                .zip(out)
+                .enumerate()
+                .map(|(k, (f, ((q, b), g)))| sum(k, f, Some((q, b, g))))
+                .fold(0.0, f64::max)
+        }
+        (None, true) => {
+            forces.par_iter_mut().enumerate().for_each(|(k, f)| {
+                sum(k, f, None);
+            });
+            0.0
+        }
+        (None, false) => {
+            forces.iter_mut().enumerate().for_each(|(k, f)| {
+                sum(k, f, None);
+            });
+            0.0
+        }
+    };
     particles.force = forces;
+    worst
 }

@@ -4,12 +4,14 @@
 //! 1. Half kick and drift (velocity Verlet, M.30-M.31).
 //! 2. Rebuild the neighbour list if a particle moved more than half the skin; bond states follow
 //!    their pairs by id.
-//! 3. Pair pass: normal forces of every pair, bond formation and breakage (paper eq. 25), and
+//! 3. With `[laser]`: absorbed powers, the beam at mid-step, on the drifted positions.
+//! 4. Pair pass: normal forces of every pair, bond formation and breakage (paper eq. 25), and
 //!    with `[thermal]` each contact's conductance.
-//! 4. Gather: per-particle sum of pair forces in fixed order, plus gravity and walls.
-//! 5. With `[thermal]`: laser absorption with the beam at mid-step, then the temperatures over dt
-//!    (M.49); melted flags latch. The bond criterion of the next step's pair pass reads them.
-//! 6. Second half kick (M.32).
+//! 5. Gather: per-particle sum of pair forces in fixed order, plus gravity and walls; with
+//!    `[thermal]` also the first substep's heat flows over the same incidence lists.
+//! 6. With `[thermal]`: the temperatures over dt (M.49); melted flags latch. The bond criterion
+//!    of the next step's pair pass reads them.
+//! 7. Second half kick (M.32).
 
 use crate::contact::{BondState, hertz};
 use crate::forces::{self, PairResult};
@@ -305,7 +307,9 @@ impl Simulation {
             .resize(self.neighbors.pairs.len(), PairResult::default());
     }
 
-    fn compute_forces(&mut self) {
+    /// Pair pass and gather (steps 3-4). With `[thermal]` they also compute the contact
+    /// conductances and the first substep's heat flows; returns `max G_i / C_i` then.
+    fn compute_forces(&mut self) -> Option<f64> {
         let heat = match (&self.model.thermal, &mut self.thermal) {
             (Some(model), Some(state)) => {
                 state.conductance.resize(self.neighbors.pairs.len(), 0.0);
@@ -325,12 +329,40 @@ impl Simulation {
             &mut self.pair_results,
             heat,
         );
-        forces::gather(
+        let heat = match (&self.model.thermal, &mut self.thermal) {
+            (Some(model), Some(state)) => {
+                let ThermalState {
+                    temperature,
+                    conductance,
+                    laser_power,
+                    heat_capacity,
+                    heat_flow,
+                    boundary_flow,
+                    total_conductance,
+                    ..
+                } = state;
+                Some(forces::GatherHeat {
+                    model,
+                    temperature,
+                    conductance,
+                    laser_power,
+                    heat_capacity,
+                    heat_flow,
+                    boundary_flow,
+                    total_conductance,
+                })
+            }
+            _ => None,
+        };
+        let thermal = heat.is_some();
+        let worst = forces::gather(
             &self.model,
             &mut self.particles,
             &self.neighbors,
             &self.pair_results,
+            heat,
         );
+        thermal.then_some(worst)
     }
 
     fn update_conductances(&mut self) {
@@ -346,38 +378,48 @@ impl Simulation {
         }
     }
 
-    /// Step 5 of the step order: laser, then temperatures over dt (the pair pass has already
-    /// computed the conductances).
-    fn advance_temperatures(&mut self) {
-        let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) else {
+    /// Laser absorption with the beam at mid-step, on the drifted positions (before the force
+    /// passes, which fold the absorbed power into the first substep's heat balance).
+    fn absorb_laser(&mut self) {
+        let (Some(model), Some(state), Some(laser)) =
+            (&self.model.thermal, &mut self.thermal, &self.model.laser)
+        else {
             return;
         };
-        if let Some(laser) = &self.model.laser {
-            let beam = laser.beam_at(self.time + 0.5 * self.model.dt);
-            let p = &self.particles;
-            if !self.laser_snapshot.still_valid(beam, p, laser.raster_cell) {
-                let lit = match beam {
-                    Some(at) => {
-                        let absorptivity =
-                            |k: usize| model.materials[usize::from(p.material[k])].absorptivity;
-                        laser.absorb(at, p, absorptivity, &mut state.laser_power)
-                    }
-                    None => {
-                        state.laser_power.fill(0.0);
-                        Vec::new()
-                    }
-                };
-                self.laser_snapshot.record(beam, &lit, p);
-            }
+        let beam = laser.beam_at(self.time + 0.5 * self.model.dt);
+        let p = &self.particles;
+        if !self.laser_snapshot.still_valid(beam, p, laser.raster_cell) {
+            let lit = match beam {
+                Some(at) => {
+                    let absorptivity =
+                        |k: usize| model.materials[usize::from(p.material[k])].absorptivity;
+                    laser.absorb(at, p, absorptivity, &mut state.laser_power)
+                }
+                None => {
+                    state.laser_power.fill(0.0);
+                    Vec::new()
+                }
+            };
+            self.laser_snapshot.record(beam, &lit, p);
         }
-        thermal::advance(
-            model,
-            &self.model.walls,
-            &self.particles,
-            &self.neighbors,
-            state,
-            self.model.dt,
-        );
+    }
+
+    /// Step 6 of the step order: temperatures over dt, the first substep's flows given.
+    fn advance_temperatures(&mut self, first_flows: Option<f64>) {
+        if let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) {
+            thermal::advance(
+                model,
+                &self.model.walls,
+                &self.particles,
+                &self.neighbors,
+                state,
+                thermal::StepInfo {
+                    dt: self.model.dt,
+                    first_flows,
+                    laser_on: self.model.laser.is_some(),
+                },
+            );
+        }
     }
 
     /// Advances one time step in the documented order.
@@ -387,8 +429,9 @@ impl Simulation {
         if self.neighbors.needs_rebuild(&self.particles.position) {
             self.rebuild_neighbors();
         }
-        self.compute_forces();
-        self.advance_temperatures();
+        self.absorb_laser();
+        let first_flows = self.compute_forces();
+        self.advance_temperatures(first_flows);
         integrate::kick(&mut self.particles, dt);
         self.step += 1;
         #[allow(clippy::cast_precision_loss)]

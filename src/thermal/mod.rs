@@ -79,6 +79,17 @@ pub struct ThermalModel {
     pub substep_fraction: f64,
 }
 
+impl ThermalModel {
+    /// Whether particles exchange heat with anything outside the bed (isothermal walls, gas,
+    /// surroundings).
+    #[must_use]
+    pub fn has_boundary_exchange(&self) -> bool {
+        self.convection.is_some()
+            || self.radiation.is_some()
+            || self.wall_temperatures.iter().any(Option::is_some)
+    }
+}
+
 /// Per-particle thermal state (structure of arrays, like `Particles`).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ThermalState {
@@ -99,11 +110,11 @@ pub struct ThermalState {
     /// Per pair slot of the neighbour list: contact conductance H [W/K] of this step.
     pub conductance: Vec<f64>,
     /// Net heat flow into each particle at the start of the current substep [W].
-    heat_flow: Vec<f64>,
+    pub(crate) heat_flow: Vec<f64>,
     /// Per particle: total conductance G_i [W/K] (M.49).
-    total_conductance: Vec<f64>,
+    pub(crate) total_conductance: Vec<f64>,
     /// Heat flow from walls, gas and surroundings into each particle [W] (part of `heat_flow`).
-    boundary_flow: Vec<f64>,
+    pub(crate) boundary_flow: Vec<f64>,
     /// Per particle: laser energy absorbed since the start [J]. Kept per particle, so the pass
     /// that adds to it writes only its own slot; totals are summed when asked for.
     pub laser_energy: Vec<f64>,
@@ -346,21 +357,42 @@ type OwnSlots<'a> = (
     (&'a mut f64, &'a mut f64),
 );
 
+/// What [`advance`] needs to know about the step besides the state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepInfo {
+    /// Mechanical time step [s].
+    pub dt: f64,
+    /// `Some(max G_i / C_i)` [1/s] when the force gather already computed the first substep's
+    /// heat flows.
+    pub first_flows: Option<f64>,
+    /// Whether the scene has a laser (else the laser-energy accumulators are skipped).
+    pub laser_on: bool,
+}
+
 /// Advances the temperatures over one mechanical step `dt` [s] by (M.49), using the contact
 /// conductances and laser powers already stored in `state`.
 ///
 /// Per substep: one pass over the particles computes every heat flow (and, in the first, every
 /// total conductance G_i, which fixes the substep count), a second streams the enthalpy update.
+/// The first pass may already have been made by the force gather (see [`StepInfo`]).
 pub fn advance(
     model: &ThermalModel,
     walls: &[Wall],
     particles: &Particles,
     list: &NeighborList,
     state: &mut ThermalState,
-    dt: f64,
+    step: StepInfo,
 ) {
+    let StepInfo {
+        dt,
+        first_flows,
+        laser_on,
+    } = step;
     let n = particles.len();
-    let worst = heat_flows(model, walls, particles, list, state);
+    let worst = match first_flows {
+        Some(worst) => worst,
+        None => heat_flows(model, walls, particles, list, state),
+    };
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let substeps = ((dt * worst / model.substep_fraction).ceil() as u32).max(1);
     let dt_sub = dt / f64::from(substeps);
@@ -382,42 +414,106 @@ pub fn advance(
             boundary_energy,
             ..
         } = state;
-        let update = |(k, (((e, t), m), (laser, boundary))): (usize, OwnSlots<'_>)| {
+        let core = |k: usize, e: &mut f64, t: &mut f64, m: &mut bool| {
             *e += dt_sub * heat_flow[k];
-            *laser += dt_sub * laser_power[k];
-            *boundary += dt_sub * boundary_flow[k];
             *t = temperature_from_enthalpy(*e, heat_capacity[k], melting_point[k], latent_heat[k]);
             *m |= *t >= melting_point[k];
         };
-        if crate::worth_parallel(n) {
-            let own = enthalpy
-                .par_iter_mut()
-                .zip(temperature.par_iter_mut())
-                .zip(melted.par_iter_mut());
-            own.zip(
-                laser_energy
+        // The energy accumulators cost two more streams; a scene without laser and boundary
+        // exchange does not pay for them (its laser and boundary powers are zero anyway).
+        let accumulate = laser_on || model.has_boundary_exchange();
+        let update = |(k, (((e, t), m), (laser, boundary))): (usize, OwnSlots<'_>)| {
+            core(k, e, t, m);
+            *laser += dt_sub * laser_power[k];
+            *boundary += dt_sub * boundary_flow[k];
+        };
+        match (crate::worth_parallel(n), accumulate) {
+            (true, true) => {
+                let own = enthalpy
                     .par_iter_mut()
-                    .zip(boundary_energy.par_iter_mut()),
-            )
-            .enumerate()
-            .for_each(update);
-        } else {
-            let own = enthalpy
-                .iter_mut()
-                .zip(temperature.iter_mut())
-                .zip(melted.iter_mut());
-            own.zip(laser_energy.iter_mut().zip(boundary_energy.iter_mut()))
+                    .zip(temperature.par_iter_mut())
+                    .zip(melted.par_iter_mut());
+                own.zip(
+                    laser_energy
+                        .par_iter_mut()
+                        .zip(boundary_energy.par_iter_mut()),
+                )
                 .enumerate()
                 .for_each(update);
+            }
+            (false, true) => {
+                let own = enthalpy
+                    .iter_mut()
+                    .zip(temperature.iter_mut())
+                    .zip(melted.iter_mut());
+                own.zip(laser_energy.iter_mut().zip(boundary_energy.iter_mut()))
+                    .enumerate()
+                    .for_each(update);
+            }
+            (true, false) => {
+                let own = enthalpy
+                    .par_iter_mut()
+                    .zip(temperature.par_iter_mut())
+                    .zip(melted.par_iter_mut());
+                own.enumerate()
+                    .for_each(|(k, ((e, t), m))| core(k, e, t, m));
+            }
+            (false, false) => {
+                let own = enthalpy
+                    .iter_mut()
+                    .zip(temperature.iter_mut())
+                    .zip(melted.iter_mut());
+                own.enumerate()
+                    .for_each(|(k, ((e, t), m))| core(k, e, t, m));
+            }
         }
     }
     state.substeps = substeps;
     state.max_substeps = state.max_substeps.max(substeps);
 }
 
+/// Exchange of particle `k` at temperature `t` [K] with isothermal walls, the gas and the
+/// surroundings: `(heat flow into it [W], total conductance [W/K])`, radiation linearised at
+/// `max(T, T_m, T_env)` (a laser may heat the particle within the step).
+#[must_use]
+#[inline]
+pub fn boundary_heat(
+    model: &ThermalModel,
+    walls: &[Wall],
+    particles: &Particles,
+    k: usize,
+    t: f64,
+) -> (f64, f64) {
+    let material = &model.materials[usize::from(particles.material[k])];
+    let area = losses::sphere_area(particles.radius[k]);
+    let (mut flow, mut conductance) = (0.0, 0.0);
+    for (w, wall) in walls.iter().enumerate() {
+        if let Some(t_wall) = model.wall_temperatures[w] {
+            let h = wall_conductance(model, particles, k, w, wall);
+            flow += h * (t_wall - t);
+            conductance += h;
+        }
+    }
+    if let Some((h, t_gas)) = model.convection {
+        flow += losses::convection(h, area, t, t_gas);
+        conductance += h * area;
+    }
+    if let Some(environment) = model.radiation {
+        flow += losses::radiation(material.emissivity, area, t, environment);
+        conductance += losses::radiation_conductance(
+            material.emissivity,
+            area,
+            t.max(material.melting_point),
+            environment,
+        );
+    }
+    (flow, conductance)
+}
+
 /// Net heat flow into every particle at the current temperatures [W] and its total conductance
 /// G_i (parallel over particles, each summing its contacts in the fixed CSR order). Returns
-/// `max_i G_i / C_i` [1/s].
+/// `max_i G_i / C_i` [1/s]. The first substep of a step gets these from the force gather instead
+/// (`forces::gather`), which walks the same incidence lists anyway.
 fn heat_flows(
     model: &ThermalModel,
     walls: &[Wall],
@@ -438,7 +534,7 @@ fn heat_flows(
     let temperature = &*temperature;
     let flow = |(k, ((q, g), boundary)): (usize, ((&mut f64, &mut f64), &mut f64))| -> f64 {
         let t = temperature[k];
-        let (mut contacts, mut exchange, mut sum) = (0.0, 0.0, 0.0);
+        let (mut contacts, mut sum) = (0.0, 0.0);
         for inc in list.incident(k) {
             let h = conductance[inc.pair as usize];
             if h > 0.0 {
@@ -446,33 +542,11 @@ fn heat_flows(
                 sum += h;
             }
         }
-        let material = &model.materials[usize::from(particles.material[k])];
-        let area = losses::sphere_area(particles.radius[k]);
-        for (w, wall) in walls.iter().enumerate() {
-            if let Some(t_wall) = model.wall_temperatures[w] {
-                let h = wall_conductance(model, particles, k, w, wall);
-                exchange += h * (t_wall - t);
-                sum += h;
-            }
-        }
-        if let Some((h, t_gas)) = model.convection {
-            exchange += losses::convection(h, area, t, t_gas);
-            sum += h * area;
-        }
-        if let Some(environment) = model.radiation {
-            exchange += losses::radiation(material.emissivity, area, t, environment);
-            // Linearised at max(T, T_m, T_env): a laser may heat the particle within the step.
-            sum += losses::radiation_conductance(
-                material.emissivity,
-                area,
-                t.max(material.melting_point),
-                environment,
-            );
-        }
-        *boundary = exchange;
-        *q = contacts + exchange + laser_power[k];
-        *g = sum;
-        sum / heat_capacity[k]
+        let (outside, outside_conductance) = boundary_heat(model, walls, particles, k, t);
+        *boundary = outside;
+        *q = contacts + outside + laser_power[k];
+        *g = sum + outside_conductance;
+        *g / heat_capacity[k]
     };
     if crate::worth_parallel(temperature.len()) {
         let out = heat_flow
