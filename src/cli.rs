@@ -121,6 +121,14 @@ fn resume(scene_path: &Path, file: &Path) -> Result<Simulation, String> {
             particles.len()
         ));
     }
+    if saved.scene != std::fs::read_to_string(scene_path).unwrap_or_default() {
+        eprintln!(
+            "warning: {} differs from the scene stored in {}: the run continues with {}",
+            scene_path.display(),
+            file.display(),
+            scene_path.display()
+        );
+    }
     particles.position = saved.position;
     particles.velocity = saved.velocity;
     let sim = Simulation::resume(model, particles, saved.state)
@@ -326,8 +334,10 @@ fn print_summary(sim: &Simulation, initial: &Diagnostics, wall: f64, threads: us
         d.kinetic_energy
     );
     if let (Some(t0), Some(t1)) = (initial.thermal, d.thermal) {
+        // Since the start of this run (a resumed run starts with the energies it had).
         let stored = t1.enthalpy - t0.enthalpy;
-        let supplied = t1.laser_energy + t1.boundary_energy;
+        let supplied =
+            (t1.laser_energy - t0.laser_energy) + (t1.boundary_energy - t0.boundary_energy);
         let scale = t1
             .laser_energy
             .abs()

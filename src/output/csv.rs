@@ -21,12 +21,14 @@ impl SeriesWriter {
     /// # Errors
     /// [`OutputError::Exists`] if the file exists and `overwrite` is false; I/O errors.
     pub fn create(path: &Path, overwrite: bool, thermal: bool) -> Result<Self, OutputError> {
-        let opened = if overwrite {
-            File::create(path)
-        } else {
-            File::create_new(path)
-        };
-        let file = opened.map_err(|e| {
+        if overwrite && path.exists() {
+            // Unlink rather than truncate, as for the HDF5 file: a reader keeps the old rows.
+            std::fs::remove_file(path).map_err(|source| OutputError::Io {
+                path: path.to_owned(),
+                source,
+            })?;
+        }
+        let file = File::create_new(path).map_err(|e| {
             if e.kind() == std::io::ErrorKind::AlreadyExists {
                 OutputError::Exists(path.to_owned())
             } else {
@@ -44,15 +46,36 @@ impl SeriesWriter {
         writer.line(&header.join(","))?;
         Ok(writer)
     }
-
-    /// Opens an existing CSV to append rows (a resumed run); creates it if missing.
+    /// Opens an existing CSV to continue a run resumed at `step`: rows after it (written by the
+    /// run before it was killed) are dropped, so no step appears twice. Creates the file if missing.
     ///
     /// # Errors
     /// I/O errors.
-    pub fn append(path: &Path, thermal: bool) -> Result<Self, OutputError> {
+    pub fn append(path: &Path, thermal: bool, step: u64) -> Result<Self, OutputError> {
         if !path.exists() {
             return Self::create(path, false, thermal);
         }
+        let io = |source| OutputError::Io {
+            path: path.to_owned(),
+            source,
+        };
+        let text = std::fs::read_to_string(path).map_err(io)?;
+        let kept: Vec<&str> = text
+            .lines()
+            .enumerate()
+            .filter(|(k, line)| {
+                *k == 0
+                    || line
+                        .split(',')
+                        .next()
+                        .and_then(|s| s.parse::<u64>().ok())
+                        .is_some_and(|s| s <= step)
+            })
+            .map(|(_, line)| line)
+            .collect();
+        let tmp = path.with_extension("csv.tmp");
+        std::fs::write(&tmp, kept.join("\n") + "\n").map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(io)?;
         let file = File::options()
             .append(true)
             .open(path)

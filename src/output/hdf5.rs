@@ -86,16 +86,19 @@ impl OutputFile {
         thermal: bool,
         deflate: u8,
     ) -> Result<Self> {
-        if !overwrite && path.exists() {
-            return Err(OutputError::Exists(path.to_path_buf()));
+        if path.exists() {
+            if !overwrite {
+                return Err(OutputError::Exists(path.to_path_buf()));
+            }
+            // Unlink rather than truncate: a reader that has the old file open keeps it intact
+            // (HDF5 would truncate it first and only then fail on the reader's lock).
+            std::fs::remove_file(path).map_err(|source| OutputError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
         }
         // create_excl also fails if the file appeared since the check above.
-        let file = if overwrite {
-            File::create(path)
-        } else {
-            File::create_excl(path)
-        }
-        .on(path)?;
+        let file = File::create_excl(path).on(path)?;
         let build = || -> hdf5::Result<()> {
             string_attr(&file, "format", FORMAT_NAME)?;
             file.new_attr::<u32>()
@@ -135,19 +138,26 @@ impl OutputFile {
         out.write_xdmf()?;
         Ok(out)
     }
-
-    /// Reopens a file to continue a run: drops an incomplete last frame (a run killed while
-    /// writing it) and series rows after the last complete frame's step.
+    /// Reopens a file to continue a run resumed at `step`: drops the frames after it (and an
+    /// incomplete one: a run killed while writing it), and the series rows after it.
     ///
     /// # Errors
     /// HDF5 errors, or [`OutputError::Format`] if it is not an am-sim file.
-    pub fn open_append(path: &Path, thermal: bool, deflate: u8) -> Result<Self> {
+    pub fn open_append(path: &Path, thermal: bool, deflate: u8, step: u64) -> Result<Self> {
         let file = File::open_rw(path).on(path)?;
         check_format(&file, path)?;
         let frames_group = file.group("frames").on(path)?;
         let mut names = frame_names(&frames_group).on(path)?;
         while let Some(last) = names.last() {
-            if frame_is_complete(&frames_group.group(last).on(path)?) {
+            let group = frames_group.group(last).on(path)?;
+            let complete = frame_is_complete(&group);
+            if complete
+                && group
+                    .attr("step")
+                    .and_then(|a| a.read_scalar::<u64>())
+                    .on(path)?
+                    <= step
+            {
                 break;
             }
             frames_group.unlink(last).on(path)?;
@@ -157,16 +167,9 @@ impl OutputFile {
         for name in &names {
             frames.push(meta_of_group(&frames_group.group(name).on(path)?, name).on(path)?);
         }
-        let last_step = match names.last() {
-            Some(name) => frames_group
-                .group(name)
-                .and_then(|g| g.attr("step")?.read_scalar::<u64>())
-                .on(path)?,
-            None => 0,
-        };
         let series = file.group("series").on(path)?;
         let steps: Vec<u64> = series.dataset("step").and_then(|d| d.read_raw()).on(path)?;
-        let keep = steps.iter().take_while(|s| **s <= last_step).count();
+        let keep = steps.iter().take_while(|s| **s <= step).count();
         for c in series_columns(thermal) {
             series
                 .dataset(c.name)

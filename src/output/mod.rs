@@ -160,7 +160,8 @@ pub struct Writers {
 
 impl Writers {
     /// Opens the files the scene asks for. With `restart_from`, frames and series go on in that
-    /// HDF5 file (after its last complete frame) and the CSV, if any, is appended to.
+    /// HDF5 file after the step the run resumes from (later frames and rows, from a run killed
+    /// after its last restart point, are dropped), and likewise in the CSV.
     ///
     /// # Errors
     /// [`OutputError::Exists`] for an existing file without `overwrite`; I/O and HDF5 errors.
@@ -172,17 +173,14 @@ impl Writers {
     ) -> Result<Self, OutputError> {
         let settings = &sim.model.output;
         let thermal = sim.thermal.is_some();
-        let csv = match &settings.series_csv {
-            Some(path) if restart_from.is_some() => Some(csv::SeriesWriter::append(path, thermal)?),
-            Some(path) => Some(csv::SeriesWriter::create(path, overwrite, thermal)?),
-            None => None,
-        };
+        // The HDF5 file first: if it cannot be opened, the CSV has not been touched.
         #[cfg(feature = "hdf5")]
         let hdf5 = match (restart_from, &settings.file) {
             (Some(path), _) => Some(hdf5::OutputFile::open_append(
                 path,
                 thermal,
                 settings.deflate,
+                sim.step,
             )?),
             (None, Some(path)) => Some(hdf5::OutputFile::create(
                 path,
@@ -195,6 +193,13 @@ impl Writers {
         };
         #[cfg(not(feature = "hdf5"))]
         let _ = scene_text;
+        let csv = match &settings.series_csv {
+            Some(path) if restart_from.is_some() => {
+                Some(csv::SeriesWriter::append(path, thermal, sim.step)?)
+            }
+            Some(path) => Some(csv::SeriesWriter::create(path, overwrite, thermal)?),
+            None => None,
+        };
         let resumed = restart_from.map(|_| sim.step);
         Ok(Self {
             #[cfg(feature = "hdf5")]

@@ -4,7 +4,8 @@
 //! Structure, checked with all three XDMF readers of ParaView 5.11 (`XDMFReader`,
 //! `Xdmf3ReaderS`, `Xdmf3ReaderT`, see `scripts/check_paraview.py`):
 //! * two temporal collections, `particles` and `bonds`, one uniform grid per frame with its
-//!   `<Time>`, so block names stay the same over time;
+//!   `<Time>` (the XDMF Reader names the blocks `particles` and `bonds`; the Xdmf3 readers
+//!   number them);
 //! * particles are a Polyvertex topology whose connectivity is the first N entries (a
 //!   HyperSlab) of the shared dataset `/xdmf/point_index` = 0, 1, 2, …: without explicit
 //!   connectivity the Xdmf3 readers create no cells and nothing is drawn;
