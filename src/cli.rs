@@ -316,16 +316,16 @@ fn print_summary(sim: &Simulation, initial: &Diagnostics, wall: f64, threads: us
         d.bonds,
         d.neighbor_builds
     );
-    let e0 = initial.mechanical_energy();
-    let e1 = d.mechanical_energy();
-    let scale = initial
-        .kinetic_energy
-        .abs()
-        .max(e0.abs())
-        .max(f64::MIN_POSITIVE);
+    // (M.35): kinetic + gravitational + elastic energy plus what damping and bond formation
+    // took must stay constant; the residual is the integrator's energy error.
+    let (e0, e1) = (initial.mechanical_energy(), d.mechanical_energy());
+    let lost = d.dissipated_energy - initial.dissipated_energy;
+    let scale = [initial.kinetic_energy, e0, e1, lost, d.kinetic_energy]
+        .iter()
+        .fold(f64::MIN_POSITIVE, |m, x| m.max(x.abs()));
     say!(
-        "  energy: mechanical {e0:.6e} J → {e1:.6e} J (change {:+.3e} relative; damping and bond formation lower it, a rise means dt is too large)",
-        (e1 - e0) / scale
+        "  energy: mechanical {e0:.6e} J → {e1:.6e} J, lost to damping and bonding {lost:.6e} J; balance residual {:.2e} relative",
+        (e1 + lost - e0).abs() / scale
     );
     say!(
         "  largest overlap now: {:.4e} m ({:.3} % of the smaller radius); kinetic energy {:.4e} J",

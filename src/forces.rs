@@ -25,6 +25,10 @@ pub struct PairResult {
     pub force_on_first: DVec3,
     /// Overlap δ [m] (≤ 0 when apart).
     pub overlap: f64,
+    /// Mechanical energy the pair lost during this step [J] (M.35): the work of its damper
+    /// (and of the sign rules' clipping), plus the drop of stored energy when it bonded (or the
+    /// rise when a bond broke). Split half and half between its particles by the gather.
+    pub lost: f64,
 }
 
 /// Geometry of pair (a, b): unit normal from a to b and the overlap δ = r_a + r_b − |x_b − x_a|.
@@ -80,6 +84,7 @@ pub fn pair_pass(
             *result = PairResult {
                 force_on_first: DVec3::ZERO,
                 overlap,
+                lost: 0.0,
             };
             return;
         }
@@ -93,10 +98,32 @@ pub fn pair_pass(
         let (melted_a, melted_b) = melted.map_or((false, false), |m| (m[a], m[b]));
         let criterion = model.bond_criterion.holds(melted_a, melted_b);
         let outcome = contact::normal_force(params, &kinematics, *state, criterion);
+        // (M.35): damper work over the step, at the half-step velocity the force used.
+        let mut lost = model.dt * (outcome.force - outcome.elastic) * kinematics.overlap_rate;
+        if outcome.state != *state {
+            if let Some(bond) = &params.bond {
+                // The stored energy jumps where eq. 25 switches branch at a given overlap.
+                let hertz_energy = hertz::elastic_energy(
+                    params.effective_modulus,
+                    kinematics.effective_radius,
+                    overlap,
+                );
+                let bond_energy = bond.elastic_energy(
+                    params.effective_modulus,
+                    kinematics.effective_radius,
+                    overlap,
+                );
+                lost += match outcome.state {
+                    BondState::Bonded => hertz_energy - bond_energy,
+                    BondState::Unbonded => bond_energy - hertz_energy,
+                };
+            }
+        }
         *state = outcome.state;
         *result = PairResult {
             force_on_first: -outcome.force * normal,
             overlap,
+            lost,
         };
     };
     let parallel = crate::worth_parallel(list.pairs.len());
@@ -178,7 +205,9 @@ pub fn gather(
     heat: Option<GatherHeat<'_>>,
 ) -> f64 {
     let mut forces = std::mem::take(&mut particles.force);
+    let mut dissipated = std::mem::take(&mut particles.dissipated);
     let state = &*particles;
+    let dt = model.dt;
     let inputs = heat.as_ref().map(|h| {
         (
             h.model,
@@ -188,13 +217,23 @@ pub fn gather(
             h.heat_capacity,
         )
     });
-    let sum = |k: usize, force: &mut DVec3, out: Option<(&mut f64, &mut f64, &mut f64)>| -> f64 {
+    let sum = |k: usize,
+               force: &mut DVec3,
+               lost: &mut f64,
+               out: Option<(&mut f64, &mut f64, &mut f64)>|
+     -> f64 {
         let mut total = state.mass[k] * model.gravity;
+        let mut lost_now = 0.0;
         let (mut exchange, mut conductance_sum) = (0.0, 0.0);
         let t = inputs.map_or(0.0, |(_, temperature, ..)| temperature[k]);
         for incidence in list.incident(k) {
-            let f = results[incidence.pair as usize].force_on_first;
-            total += if incidence.first { f } else { -f };
+            let result = &results[incidence.pair as usize];
+            total += if incidence.first {
+                result.force_on_first
+            } else {
+                -result.force_on_first
+            };
+            lost_now += 0.5 * result.lost;
             if let Some((_, temperature, conductance, ..)) = inputs {
                 let h = conductance[incidence.pair as usize];
                 if h > 0.0 {
@@ -215,14 +254,18 @@ pub fn gather(
                     effective_radius: state.radius[k],
                     effective_mass: state.mass[k],
                 };
-                total += contact::hertz_force(
+                let (wall_force, elastic) = contact::hertz_parts(
                     params.effective_modulus,
                     params.damping_ratio,
                     &kinematics,
-                ) * normal;
+                );
+                total += wall_force * normal;
+                // (M.35): the wall's damper work over the step.
+                lost_now += dt * (wall_force - elastic) * kinematics.overlap_rate;
             }
         }
         *force = total;
+        *lost += lost_now;
         match (out, inputs) {
             (Some((q, boundary, g)), Some((thermal_model, _, _, laser_power, heat_capacity))) => {
                 let (outside, outside_conductance) =
@@ -245,9 +288,10 @@ pub fn gather(
                 .zip(h.total_conductance.par_iter_mut());
             forces
                 .par_iter_mut()
+                .zip(dissipated.par_iter_mut())
                 .zip(out)
                 .enumerate()
-                .map(|(k, (f, ((q, b), g)))| sum(k, f, Some((q, b, g))))
+                .map(|(k, ((f, d), ((q, b), g)))| sum(k, f, d, Some((q, b, g))))
                 .reduce(|| 0.0, f64::max)
         }
         (Some(h), false) => {
@@ -258,24 +302,34 @@ pub fn gather(
                 .zip(h.total_conductance.iter_mut());
             forces
                 .iter_mut()
+                .zip(dissipated.iter_mut())
                 .zip(out)
                 .enumerate()
-                .map(|(k, (f, ((q, b), g)))| sum(k, f, Some((q, b, g))))
+                .map(|(k, ((f, d), ((q, b), g)))| sum(k, f, d, Some((q, b, g))))
                 .fold(0.0, f64::max)
         }
         (None, true) => {
-            forces.par_iter_mut().enumerate().for_each(|(k, f)| {
-                sum(k, f, None);
-            });
+            forces
+                .par_iter_mut()
+                .zip(dissipated.par_iter_mut())
+                .enumerate()
+                .for_each(|(k, (f, d))| {
+                    sum(k, f, d, None);
+                });
             0.0
         }
         (None, false) => {
-            forces.iter_mut().enumerate().for_each(|(k, f)| {
-                sum(k, f, None);
-            });
+            forces
+                .iter_mut()
+                .zip(dissipated.iter_mut())
+                .enumerate()
+                .for_each(|(k, (f, d))| {
+                    sum(k, f, d, None);
+                });
             0.0
         }
     };
     particles.force = forces;
+    particles.dissipated = dissipated;
     worst
 }

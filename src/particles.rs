@@ -34,6 +34,9 @@ pub struct Particles {
     pub velocity: Vec<DVec3>,
     /// Total force at the current positions [N].
     pub force: Vec<DVec3>,
+    /// Mechanical energy lost so far by the particle's contacts (damping, bond formation; half of
+    /// each pair's share) [J] (M.35). Per particle, so the gather writes only its own slot.
+    pub dissipated: Vec<f64>,
 }
 
 impl Particles {
@@ -59,6 +62,7 @@ impl Particles {
         self.position.push(init.position);
         self.velocity.push(init.velocity);
         self.force.push(DVec3::ZERO);
+        self.dissipated.push(0.0);
         debug_assert!(self.fields_in_step());
     }
 
@@ -71,6 +75,7 @@ impl Particles {
             self.position.len(),
             self.velocity.len(),
             self.force.len(),
+            self.dissipated.len(),
         ]
         .iter()
         .all(|&len| len == n)
@@ -84,6 +89,12 @@ impl Particles {
             .zip(&self.velocity)
             .map(|(m, v)| 0.5 * m * v.length_squared())
             .sum()
+    }
+
+    /// Mechanical energy lost so far by damping and bond formation [J] (M.35), summed in index order.
+    #[must_use]
+    pub fn dissipated_energy(&self) -> f64 {
+        self.dissipated.iter().sum()
     }
 
     /// Gravitational potential energy `−Σ m g·x` [J] (zero at the origin).

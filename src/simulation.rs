@@ -49,6 +49,8 @@ pub struct RestartState {
     pub step: u64,
     /// Forces of the last step [N].
     pub force: Vec<glam::DVec3>,
+    /// Mechanical energy lost so far, per particle [J] (M.35).
+    pub dissipated: Vec<f64>,
     /// Bonded pairs as (id_lo, id_hi).
     pub bonded: Vec<(u64, u64)>,
     /// Thermal state, for scenes with `[thermal]`.
@@ -87,6 +89,8 @@ pub struct Diagnostics {
     pub gravitational_energy: f64,
     /// Elastic energy stored in contacts and bonds (M.6, M.15) [J].
     pub elastic_energy: f64,
+    /// Mechanical energy lost so far by damping and bond formation [J] (M.35).
+    pub dissipated_energy: f64,
     /// Particle–particle pairs with δ > 0.
     pub contacts: usize,
     /// Particle–wall contacts.
@@ -150,6 +154,9 @@ impl Simulation {
         };
         sim.rebuild_neighbors();
         sim.compute_forces();
+        // The t = 0 evaluation did no work over time; the energy the run starts with already
+        // counts any bond it formed.
+        sim.particles.dissipated.fill(0.0);
         sim
     }
 
@@ -160,6 +167,7 @@ impl Simulation {
         RestartState {
             step: self.step,
             force: self.particles.force.clone(),
+            dissipated: self.particles.dissipated.clone(),
             bonded: self.bonds(),
             thermal: self.thermal.as_ref().map(|t| ThermalRestart {
                 enthalpy: t.enthalpy.clone(),
@@ -244,6 +252,9 @@ impl Simulation {
         let time = sim.step as f64 * sim.model.dt;
         sim.time = time;
         sim.particles.force = state.force;
+        if state.dissipated.len() == n {
+            sim.particles.dissipated = state.dissipated;
+        }
         sim.rebuild_neighbors();
         let bonded: std::collections::HashSet<(u64, u64)> = state.bonded.into_iter().collect();
         for p in 0..sim.neighbors.pairs.len() {
@@ -257,6 +268,7 @@ impl Simulation {
             sim.pair_results[p] = PairResult {
                 force_on_first: glam::DVec3::ZERO,
                 overlap,
+                lost: 0.0,
             };
         }
         sim.update_conductances();
@@ -466,6 +478,7 @@ impl Simulation {
             step: self.step,
             time: self.time,
             kinetic_energy: p.kinetic_energy(),
+            dissipated_energy: p.dissipated_energy(),
             gravitational_energy: p.gravitational_energy(self.model.gravity),
             neighbor_builds: self.neighbors.builds,
             ..Diagnostics::default()

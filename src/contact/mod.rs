@@ -66,6 +66,9 @@ pub enum Branch {
 pub struct NormalForce {
     /// Total normal force [N], positive when repulsive.
     pub force: f64,
+    /// Its elastic (conservative) part [N]: `force − elastic` is what the damper and the sign
+    /// rules contributed, and `(force − elastic) δ̇` the power they dissipate (M.34).
+    pub elastic: f64,
     /// Bond state after this evaluation.
     pub state: BondState,
     /// Branch that produced `force`.
@@ -95,6 +98,7 @@ pub fn normal_force(
     if overlap <= 0.0 {
         return NormalForce {
             force: 0.0,
+            elastic: 0.0,
             state: BondState::Unbonded,
             branch: Branch::Separated,
         };
@@ -110,15 +114,19 @@ pub fn normal_force(
             }
         };
         if bonded {
+            let (force, elastic) = bonded_parts(bond, e_star, kin);
             return NormalForce {
-                force: bonded_force(bond, e_star, kin),
+                force,
+                elastic,
                 state: BondState::Bonded,
                 branch: Branch::Bonded,
             };
         }
     }
+    let (force, elastic) = hertz_parts(e_star, params.damping_ratio, kin);
     NormalForce {
-        force: hertz_force(e_star, params.damping_ratio, kin),
+        force,
+        elastic,
         state: BondState::Unbonded,
         branch: Branch::Hertz,
     }
@@ -128,6 +136,12 @@ pub fn normal_force(
 /// from eq. 26 as corrected ([`damping::contact_coefficient`]). Also the particle–wall law.
 #[must_use]
 pub fn hertz_force(effective_modulus: f64, damping_ratio: f64, kin: &PairKinematics) -> f64 {
+    hertz_parts(effective_modulus, damping_ratio, kin).0
+}
+
+/// [`hertz_force`] and its elastic part `(total, elastic)` [N].
+#[must_use]
+pub fn hertz_parts(effective_modulus: f64, damping_ratio: f64, kin: &PairKinematics) -> (f64, f64) {
     let elastic = hertz::elastic_force(effective_modulus, kin.effective_radius, kin.overlap);
     let damping = damping::contact_coefficient(
         damping_ratio,
@@ -137,13 +151,19 @@ pub fn hertz_force(effective_modulus: f64, damping_ratio: f64, kin: &PairKinemat
         kin.overlap,
     );
     // Sign rule 1 (after paper eq. 26): a contact without a bond never attracts.
-    (elastic + damping * kin.overlap_rate).max(0.0)
+    ((elastic + damping * kin.overlap_rate).max(0.0), elastic)
 }
 
 /// Bonded branch of paper eq. 25 (M.25): eq. 15 plus the damper of eqs. 22-24, clipped by sign
 /// rules 2 and 3 so that it never pushes away from δ_eq [N].
 #[must_use]
 pub fn bonded_force(bond: &BondParams, effective_modulus: f64, kin: &PairKinematics) -> f64 {
+    bonded_parts(bond, effective_modulus, kin).0
+}
+
+/// [`bonded_force`] and its elastic part `(total, elastic)` [N].
+#[must_use]
+pub fn bonded_parts(bond: &BondParams, effective_modulus: f64, kin: &PairKinematics) -> (f64, f64) {
     let (r_star, overlap) = (kin.effective_radius, kin.overlap);
     let elastic = bond.elastic_force(effective_modulus, r_star, overlap);
     let stiffness = bond.stiffness(effective_modulus, r_star, overlap);
@@ -151,8 +171,8 @@ pub fn bonded_force(bond: &BondParams, effective_modulus: f64, kin: &PairKinemat
     let total = elastic + damping * kin.overlap_rate;
     let equilibrium = bond.equilibrium_overlap(effective_modulus, r_star);
     if (overlap > equilibrium && total < 0.0) || (overlap < equilibrium && total > 0.0) {
-        0.0
+        (0.0, elastic)
     } else {
-        total
+        (total, elastic)
     }
 }

@@ -387,6 +387,7 @@ fn write_restart(group: &Group, state: &RestartState) -> hdf5::Result<()> {
         .new_dataset_builder()
         .with_data(ArrayView2::from_shape((force.len(), 3), force.as_flattened()).expect("N×3"))
         .create("force")?;
+    plain("dissipated_energy", ArrayView1::from(&state.dissipated))?;
     let bonded: Vec<[u64; 2]> = state.bonded.iter().map(|&(a, b)| [a, b]).collect();
     group
         .new_dataset_builder()
@@ -517,6 +518,7 @@ pub fn read_last_frame(path: &Path) -> Result<SavedRun> {
             state: RestartState {
                 step: group.attr("step")?.read_scalar()?,
                 force: vec3(restart.dataset("force")?)?,
+                dissipated: restart.dataset("dissipated_energy")?.read_raw()?,
                 bonded: bonded.chunks_exact(2).map(|c| (c[0], c[1])).collect(),
                 thermal,
                 laser,

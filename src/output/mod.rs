@@ -70,7 +70,7 @@ const fn column(name: &'static str, unit: &'static str, kind: SeriesKind) -> Ser
 }
 
 /// Columns of every run.
-pub const SERIES_COLUMNS: [SeriesColumn; 12] = [
+pub const SERIES_COLUMNS: [SeriesColumn; 13] = [
     column("step", "1", SeriesKind::U64),
     column("time_s", "s", SeriesKind::F64),
     column("kinetic_energy_j", "J", SeriesKind::F64),
@@ -83,6 +83,7 @@ pub const SERIES_COLUMNS: [SeriesColumn; 12] = [
     column("max_overlap_m", "m", SeriesKind::F64),
     column("max_overlap_ratio", "1", SeriesKind::F64),
     column("wall_time_s", "s", SeriesKind::F64),
+    column("dissipated_energy_j", "J", SeriesKind::F64),
 ];
 
 /// Columns added for scenes with `[thermal]` (and only for them).
@@ -132,6 +133,7 @@ pub fn series_row(d: &Diagnostics, wall_time_s: f64) -> Vec<SeriesValue> {
         F64(d.max_overlap),
         F64(d.max_overlap_ratio),
         F64(wall_time_s),
+        F64(d.dissipated_energy),
     ];
     if let Some(t) = d.thermal {
         row.extend([
