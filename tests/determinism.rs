@@ -6,11 +6,7 @@ mod common;
 use am_sim::simulation::Simulation;
 
 fn run(threads: usize) -> Simulation {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/laser_track.toml"
-    ))
-    .unwrap();
+    let text = common::scene_text("laser_track.toml");
     // 0.2 ms settling, then 0.6 ms of the track: enough for particles to melt and bond.
     let text = text.replace("duration_s = 3.5e-3", "duration_s = 8e-4");
     let pool = rayon::ThreadPoolBuilder::new()

@@ -7,8 +7,7 @@ mod common;
 use am_sim::simulation::Simulation;
 
 fn column() -> Simulation {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/column.toml"))
-        .expect("scene file");
+    let text = common::scene_text("column.toml");
     common::simulation(&text)
 }
 

@@ -209,8 +209,7 @@ fn a_moving_beam_heats_particles_along_its_path_at_the_right_times() {
 
 #[test]
 fn without_a_thermal_section_nothing_thermal_exists() {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/column.toml"))
-        .unwrap();
+    let text = common::scene_text("column.toml");
     let sim = common::simulation(&text);
     assert!(sim.thermal.is_none() && sim.model.thermal.is_none() && sim.model.laser.is_none());
     assert!(sim.diagnostics().thermal.is_none());

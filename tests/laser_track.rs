@@ -5,11 +5,7 @@ mod common;
 
 #[test]
 fn the_track_melts_and_bonds_into_a_line() {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/laser_track.toml"
-    ))
-    .unwrap();
+    let text = common::scene_text("laser_track.toml");
     let mut sim = common::simulation(&text);
     let d0 = sim.diagnostics();
     while sim.step < sim.model.steps {

@@ -12,18 +12,6 @@ use std::time::{Duration, Instant};
 
 use am_sim::output::hdf5::read_last_frame;
 
-fn scene_text(name: &str) -> String {
-    std::fs::read_to_string(format!("{}/scenes/{name}", env!("CARGO_MANIFEST_DIR"))).unwrap()
-}
-
-/// `laser_track.toml` shortened to `duration` [s], frames every `every` steps.
-fn short_track(duration: f64, every: u64) -> String {
-    scene_text("laser_track.toml")
-        .replace("duration_s = 3.5e-3", &format!("duration_s = {duration:e}"))
-        .replace("every_steps = 500", &format!("every_steps = {every}"))
-        .replace("series_csv = \"laser_track.csv\"", "")
-}
-
 fn am_sim(dir: &Path, args: &[&str]) -> Command {
     let mut command = Command::new(env!("CARGO_BIN_EXE_am-sim"));
     command
@@ -36,7 +24,11 @@ fn am_sim(dir: &Path, args: &[&str]) -> Command {
 #[test]
 fn an_existing_output_file_is_refused_and_kept() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("track.toml"), short_track(2e-5, 100)).unwrap();
+    std::fs::write(
+        dir.path().join("track.toml"),
+        common::short_track(2e-5, 100),
+    )
+    .unwrap();
     std::fs::write(dir.path().join("laser_track.h5"), "precious").unwrap();
     let out = am_sim(dir.path(), &["track.toml"]).output().unwrap();
     assert!(!out.status.success());
@@ -92,8 +84,8 @@ fn a_run_of_2t_equals_t_plus_a_restart_of_t_bit_for_bit() {
     // The laser switches on at 0.2 ms; the restart at 0.5 ms falls in the middle of the track,
     // with particles melting and bonding on both sides of it.
     let dir = tempfile::tempdir().unwrap();
-    let full = short_track(1e-3, 500).replace("laser_track.h5", "full.h5");
-    let half = short_track(5e-4, 500).replace("laser_track.h5", "half.h5");
+    let full = common::short_track(1e-3, 500).replace("laser_track.h5", "full.h5");
+    let half = common::short_track(5e-4, 500).replace("laser_track.h5", "half.h5");
     std::fs::write(dir.path().join("full.toml"), &full).unwrap();
     std::fs::write(dir.path().join("half.toml"), &half).unwrap();
     std::fs::write(
@@ -143,7 +135,7 @@ fn a_run_of_2t_equals_t_plus_a_restart_of_t_bit_for_bit() {
 /// The long run of the interruption tests: frames every 200 steps, series rows every 50 (in
 /// `/series` and in `series.csv`), so that a killed run leaves rows after its last frame.
 fn long_track() -> String {
-    short_track(3.5e-3, 200).replace(
+    common::short_track(3.5e-3, 200).replace(
         "[output]",
         "[output]\nseries_csv = \"series.csv\"\nseries_every_steps = 50",
     )
@@ -190,7 +182,7 @@ fn frames_survive_kill_9_and_the_run_can_continue() {
     // The killed run continues from its last complete frame.
     std::fs::write(
         dir.path().join("more.toml"),
-        short_track(3.5e-3, 200).replace(
+        common::short_track(3.5e-3, 200).replace(
             "duration_s = 3.5e-3",
             &format!("duration_s = {:e}", (saved.state.step + 400) as f64 * 1e-7),
         ),

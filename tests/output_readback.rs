@@ -10,22 +10,10 @@ use std::path::PathBuf;
 
 use am_sim::output::Writers;
 
-fn scene_text(name: &str) -> String {
-    std::fs::read_to_string(format!("{}/scenes/{name}", env!("CARGO_MANIFEST_DIR"))).unwrap()
-}
-
-/// `laser_track.toml` shortened to `duration` [s], frames every `every` steps.
-fn short_track(duration: f64, every: u64) -> String {
-    scene_text("laser_track.toml")
-        .replace("duration_s = 3.5e-3", &format!("duration_s = {duration:e}"))
-        .replace("every_steps = 500", &format!("every_steps = {every}"))
-        .replace("series_csv = \"laser_track.csv\"", "")
-}
-
 #[test]
 fn frames_hold_the_in_memory_state() {
     let dir = tempfile::tempdir().unwrap();
-    let text = short_track(6e-4, 1000);
+    let text = common::short_track(6e-4, 1000);
     let mut sim = common::simulation(&text);
     let path: PathBuf = dir.path().join("laser_track.h5");
     let cwd = std::env::current_dir().unwrap();

@@ -85,11 +85,7 @@ fn overlap_settles_onto_equilibrium_for_every_bond_damping_ratio() {
 
 #[test]
 fn scene_file_of_example_5_1_forms_the_bond() {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/paper_5_1_bond.toml"
-    ))
-    .unwrap();
+    let text = common::scene_text("paper_5_1_bond.toml");
     let mut sim = common::simulation(&text);
     for _ in 0..sim.model.steps {
         sim.step();

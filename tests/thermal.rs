@@ -298,8 +298,7 @@ fn stiff_network_stays_bounded_and_reaches_the_mixed_temperature() {
 fn an_isolated_bed_conserves_its_heat() {
     // 1000 spheres settled in an adiabatic box with a vertical temperature gradient: conduction
     // only moves heat around. 1e5 steps; each step adds round-off of ~1e-16 of the total.
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/column.toml"))
-        .unwrap();
+    let text = common::scene_text("column.toml");
     let text = text
         .replace("max_corner_m = [0.0220, 0.0220, 0.0440]", "max_corner_m = [0.0220, 0.0220, 0.0220]")
         .replace("duration_s = 0.1", "duration_s = 0.5")

@@ -127,3 +127,19 @@ pub fn approach_speed(sim: &Simulation) -> f64 {
 pub fn sphere_mass(density: f64) -> f64 {
     density * 4.0 / 3.0 * std::f64::consts::PI * RADIUS.powi(3)
 }
+
+/// The text of a shipped scene, `scenes/<name>`.
+#[must_use]
+pub fn scene_text(name: &str) -> String {
+    std::fs::read_to_string(format!("{}/scenes/{name}", env!("CARGO_MANIFEST_DIR")))
+        .expect("scene file")
+}
+
+/// `scenes/laser_track.toml` shortened to `duration` [s], frames every `every` steps, no CSV.
+#[must_use]
+pub fn short_track(duration: f64, every: u64) -> String {
+    scene_text("laser_track.toml")
+        .replace("duration_s = 3.5e-3", &format!("duration_s = {duration:e}"))
+        .replace("every_steps = 500", &format!("every_steps = {every}"))
+        .replace("series_csv = \"laser_track.csv\"", "")
+}
