@@ -234,7 +234,10 @@ pub fn gather(
                 -result.force_on_first
             };
             lost_now += 0.5 * result.lost;
-            if let Some((_, temperature, conductance, ..)) = inputs {
+            // Only touching pairs conduct: testing the overlap (already loaded with the force)
+            // saves a random read of the conductance array for the other candidates.
+            if let Some((_, temperature, conductance, ..)) = inputs.filter(|_| result.overlap > 0.0)
+            {
                 let h = conductance[incidence.pair as usize];
                 if h > 0.0 {
                     exchange += h * (temperature[incidence.other as usize] - t);
