@@ -21,6 +21,25 @@ fn am_sim(dir: &Path, args: &[&str]) -> Command {
     command
 }
 
+/// Runs am-sim to completion and fails the test, with its stderr, if it did not succeed.
+fn run_ok(dir: &Path, args: &[&str]) -> std::process::Output {
+    let out = am_sim(dir, args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "am-sim {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// Step of the last complete frame of `laser_track.h5` in `dir`.
+fn last_step(dir: &Path) -> u64 {
+    read_last_frame(&dir.join("laser_track.h5"))
+        .unwrap()
+        .state
+        .step
+}
+
 #[test]
 fn an_existing_output_file_is_refused_and_kept() {
     let dir = tempfile::tempdir().unwrap();
@@ -37,21 +56,8 @@ fn an_existing_output_file_is_refused_and_kept() {
         std::fs::read_to_string(dir.path().join("laser_track.h5")).unwrap(),
         "precious"
     );
-    let again = am_sim(dir.path(), &["track.toml", "--overwrite"])
-        .output()
-        .unwrap();
-    assert!(
-        again.status.success(),
-        "{}",
-        String::from_utf8_lossy(&again.stderr)
-    );
-    assert_eq!(
-        read_last_frame(&dir.path().join("laser_track.h5"))
-            .unwrap()
-            .state
-            .step,
-        200
-    );
+    run_ok(dir.path(), &["track.toml", "--overwrite"]);
+    assert_eq!(last_step(dir.path()), 200);
 }
 
 /// Positions, velocities, temperatures (as bits) and bonds of a file's last frame.
@@ -93,28 +99,9 @@ fn a_run_of_2t_equals_t_plus_a_restart_of_t_bit_for_bit() {
         full.replace("full.h5", "half.h5"),
     )
     .unwrap();
-    assert!(
-        am_sim(dir.path(), &["full.toml"])
-            .output()
-            .unwrap()
-            .status
-            .success()
-    );
-    assert!(
-        am_sim(dir.path(), &["half.toml"])
-            .output()
-            .unwrap()
-            .status
-            .success()
-    );
-    let resumed = am_sim(dir.path(), &["continue.toml", "--restart", "half.h5"])
-        .output()
-        .unwrap();
-    assert!(
-        resumed.status.success(),
-        "{}",
-        String::from_utf8_lossy(&resumed.stderr)
-    );
+    run_ok(dir.path(), &["full.toml"]);
+    run_ok(dir.path(), &["half.toml"]);
+    let resumed = run_ok(dir.path(), &["continue.toml", "--restart", "half.h5"]);
     assert!(String::from_utf8_lossy(&resumed.stdout).contains("resuming at step 5000"));
     let (a, b) = (
         fingerprint(&dir.path().join("full.h5")),
@@ -182,27 +169,35 @@ fn frames_survive_kill_9_and_the_run_can_continue() {
     // The killed run continues from its last complete frame.
     std::fs::write(
         dir.path().join("more.toml"),
-        common::short_track(3.5e-3, 200).replace(
-            "duration_s = 3.5e-3",
-            &format!("duration_s = {:e}", (saved.state.step + 400) as f64 * 1e-7),
-        ),
+        extended(saved.state.step + 400),
     )
     .unwrap();
-    let resumed = am_sim(dir.path(), &["more.toml", "--restart", "laser_track.h5"])
-        .output()
-        .unwrap();
-    assert!(
-        resumed.status.success(),
-        "{}",
-        String::from_utf8_lossy(&resumed.stderr)
-    );
-    assert_eq!(
-        read_last_frame(&dir.path().join("laser_track.h5"))
-            .unwrap()
-            .state
-            .step,
-        saved.state.step + 400
-    );
+    run_ok(dir.path(), &["more.toml", "--restart", "laser_track.h5"]);
+    assert_eq!(last_step(dir.path()), saved.state.step + 400);
+    // Rows written after the last frame by the killed run were dropped: every step once, in
+    // order, the same in /series and in the CSV.
+    let expected: Vec<u64> = (0..=(saved.state.step + 400) / 50)
+        .map(|k| k * 50)
+        .collect();
+    let file = hdf5::File::open(dir.path().join("laser_track.h5")).unwrap();
+    let series: Vec<u64> = file.dataset("series/step").unwrap().read_raw().unwrap();
+    assert_eq!(series, expected);
+    let csv = std::fs::read_to_string(dir.path().join("series.csv")).unwrap();
+    let rows: Vec<u64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(rows, expected);
+}
+
+/// The long run's scene, ending at `step` (to continue a stopped run a little further).
+fn extended(step: u64) -> String {
+    let scene = long_track();
+    assert!(scene.contains("duration_s = 3.5e-3"));
+    #[allow(clippy::cast_precision_loss)]
+    let duration = step as f64 * 1e-7;
+    scene.replace("duration_s = 3.5e-3", &format!("duration_s = {duration:e}"))
 }
 
 #[test]
@@ -237,4 +232,8 @@ fn ctrl_c_writes_a_last_frame_and_closes_the_file() {
         saved.state.step, step,
         "the interrupted step is the last frame"
     );
+    // The file was closed cleanly: the run continues from it.
+    std::fs::write(dir.path().join("more.toml"), extended(step + 400)).unwrap();
+    run_ok(dir.path(), &["more.toml", "--restart", "laser_track.h5"]);
+    assert_eq!(last_step(dir.path()), step + 400);
 }
