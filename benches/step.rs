@@ -8,36 +8,11 @@ use am_sim::scene::Scene;
 use am_sim::simulation::Simulation;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
-/// Material keys and section that turn conduction on (316L-like, Batchelor & O'Brien).
-const THERMAL: (&str, &str) = (
-    "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 500\nthermal_conductivity_w_m_k = 18\nmelting_point_k = 1700",
-    "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n[output]",
-);
+mod common;
 
 fn column(scale: usize, thermal: bool) -> Simulation {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/column.toml"))
-        .expect("scene");
-    // Widen the box (and move the far walls) to get `scale` times more columns of spheres.
-    let width = 0.022 * (scale as f64).sqrt();
-    let text = text
-        .replace(
-            "max_corner_m = [0.0220, 0.0220, 0.0440]",
-            &format!("max_corner_m = [{width}, {width}, 0.0440]"),
-        )
-        .replace(
-            "point_m = [0.0220, 0.0, 0.0]",
-            &format!("point_m = [{width}, 0.0, 0.0]"),
-        )
-        .replace(
-            "point_m = [0.0, 0.0220, 0.0]",
-            &format!("point_m = [0.0, {width}, 0.0]"),
-        );
-    let text = if thermal {
-        text.replace("poisson_ratio = 0.3", THERMAL.0)
-            .replace("[output]", THERMAL.1)
-    } else {
-        text
-    };
+    #[allow(clippy::cast_precision_loss)]
+    let text = common::wide_column(scale as f64, thermal);
     let scene = Scene::from_toml(&text).expect("valid");
     let (model, particles) = Model::build(&scene);
     let mut sim = Simulation::new(model, particles);

@@ -9,31 +9,11 @@ use am_sim::model::Model;
 use am_sim::scene::Scene;
 use am_sim::simulation::Simulation;
 
+mod common;
+
 fn column(thermal: bool) -> Simulation {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/column.toml"))
-        .expect("scene");
-    // √10 × wider: 31 × 31 × 20 = 19,220 spheres.
-    let width = 0.022 * 10f64.sqrt();
-    let mut text = text
-        .replace(
-            "max_corner_m = [0.0220, 0.0220, 0.0440]",
-            &format!("max_corner_m = [{width}, {width}, 0.0440]"),
-        )
-        .replace(
-            "point_m = [0.0220, 0.0, 0.0]",
-            &format!("point_m = [{width}, 0.0, 0.0]"),
-        )
-        .replace(
-            "point_m = [0.0, 0.0220, 0.0]",
-            &format!("point_m = [0.0, {width}, 0.0]"),
-        );
-    text.truncate(text.find("[output]").expect("output section"));
-    if thermal {
-        text = text.replace(
-            "poisson_ratio = 0.3",
-            "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 500\nthermal_conductivity_w_m_k = 18\nmelting_point_k = 1700",
-        ) + "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n";
-    }
+    // √10 × wider than scenes/column.toml: 31 × 31 × 20 = 19,220 spheres.
+    let text = common::wide_column(10.0, thermal);
     let scene = Scene::from_toml(&text).expect("valid");
     let (model, particles) = Model::build(&scene);
     let mut sim = Simulation::new(model, particles);
