@@ -76,10 +76,10 @@ pub fn pair_pass(
                     conductance: Option<&mut f64>| {
         let (a, b) = (a as usize, b as usize);
         let (normal, overlap) = pair_geometry(particles, a, b);
-        if let (Some(h), Some(t)) = (conductance, thermal) {
-            *h = thermal::pair_conductance(t, particles, a, b, overlap);
-        }
         if overlap <= 0.0 {
+            if let Some(h) = conductance {
+                *h = 0.0;
+            }
             *state = BondState::Unbonded;
             *result = PairResult {
                 force_on_first: DVec3::ZERO,
@@ -94,6 +94,10 @@ pub fn pair_pass(
             effective_radius: hertz::effective_radius(particles.radius[a], particles.radius[b]),
             effective_mass: hertz::effective_mass(particles.mass[a], particles.mass[b]),
         };
+        if let (Some(h), Some(t)) = (conductance, thermal) {
+            *h =
+                thermal::pair_conductance(t, particles, a, b, overlap, kinematics.effective_radius);
+        }
         let params = model.pair_params(particles.material[a], particles.material[b]);
         let (melted_a, melted_b) = melted.map_or((false, false), |m| (m[a], m[b]));
         let criterion = model.bond_criterion.holds(melted_a, melted_b);

@@ -80,6 +80,17 @@ pub struct ThermalModel {
 }
 
 impl ThermalModel {
+    /// `k* = 2 k_a k_b / (k_a + k_b)` of materials a and b [W/(m·K)] (M.41).
+    #[must_use]
+    #[inline]
+    pub fn harmonic_conductivity(&self, a: u16, b: u16) -> f64 {
+        let (ka, kb) = (
+            self.materials[usize::from(a)].conductivity,
+            self.materials[usize::from(b)].conductivity,
+        );
+        2.0 * ka * kb / (ka + kb)
+    }
+
     /// Whether particles exchange heat with anything outside the bed (isothermal walls, gas,
     /// surroundings).
     #[must_use]
@@ -258,18 +269,23 @@ pub fn pair_conductance(
     a: usize,
     b: usize,
     overlap: f64,
+    effective_radius: f64,
 ) -> f64 {
     if overlap <= 0.0 {
         return 0.0;
     }
-    let (ra, rb) = (particles.radius[a], particles.radius[b]);
-    let ka = model.materials[usize::from(particles.material[a])].conductivity;
-    let kb = model.materials[usize::from(particles.material[b])].conductivity;
-    let contact = conduction::contact_radius(ra * rb / (ra + rb), overlap);
+    let contact = conduction::contact_radius(effective_radius, overlap);
+    let (ma, mb) = (particles.material[a], particles.material[b]);
     match model.conduction {
         ConductionModel::None => 0.0,
-        ConductionModel::BatchelorObrien => conduction::batchelor_obrien(ka, kb, contact),
+        // 2 k* a with k* from the per-material-pair table: no division in the hot loop.
+        ConductionModel::BatchelorObrien => 2.0 * model.harmonic_conductivity(ma, mb) * contact,
         ConductionModel::ThermalPipe => {
+            let (ra, rb) = (particles.radius[a], particles.radius[b]);
+            let (ka, kb) = (
+                model.materials[usize::from(ma)].conductivity,
+                model.materials[usize::from(mb)].conductivity,
+            );
             conduction::thermal_pipe(ka, kb, ra, rb, contact, ra + rb - overlap)
         }
     }
@@ -287,7 +303,10 @@ pub fn update_conductances(
 ) {
     conductance.resize(list.pairs.len(), 0.0);
     let law = |(p, (&[a, b], h)): (usize, (&[u32; 2], &mut f64))| {
-        *h = pair_conductance(model, particles, a as usize, b as usize, overlap(p));
+        let (a, b) = (a as usize, b as usize);
+        let effective_radius =
+            particles.radius[a] * particles.radius[b] / (particles.radius[a] + particles.radius[b]);
+        *h = pair_conductance(model, particles, a, b, overlap(p), effective_radius);
     };
     if crate::worth_parallel(list.pairs.len()) {
         list.pairs
@@ -484,6 +503,9 @@ pub fn boundary_heat(
     k: usize,
     t: f64,
 ) -> (f64, f64) {
+    if !model.has_boundary_exchange() {
+        return (0.0, 0.0);
+    }
     let material = &model.materials[usize::from(particles.material[k])];
     let area = losses::sphere_area(particles.radius[k]);
     let (mut flow, mut conductance) = (0.0, 0.0);
