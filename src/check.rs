@@ -6,7 +6,8 @@
 
 use std::fmt::{self, Write as _};
 
-use crate::contact::{BondParams, hertz};
+use crate::contact::{NormalParams, hertz};
+use crate::integrate;
 use crate::model::Model;
 use crate::particles::Particles;
 use crate::simulation::Simulation;
@@ -33,6 +34,9 @@ pub struct PairRow {
     pub effective_mass: f64,
     /// Hertz contact time at the expected impact speed [s].
     pub contact_time: f64,
+    /// Largest stable dt (M.70) of the contact at the largest overlap of the expected impact,
+    /// and of the bond at δ_eq and at that overlap [s].
+    pub stability_limit: f64,
     /// Bond quantities, when the scene has a bond.
     pub bond: Option<BondRow>,
 }
@@ -73,6 +77,9 @@ pub struct CheckReport {
     pub initial_overlap_ratio: f64,
     /// Recommended dt [s].
     pub recommended_dt: f64,
+    /// The stability limit of the scene (M.70) [s] and what sets it: the smallest over the pair
+    /// rows and over the contacts of the initial state.
+    pub stability_limit: (f64, String),
     /// Warnings (empty when dt is fine).
     pub warnings: Vec<String>,
     /// Thermal time scales, for scenes with `[thermal]`.
@@ -184,11 +191,10 @@ pub fn report(sim: &Simulation) -> CheckReport {
                 pairs.push(pair_row(
                     names(a, Some(b)),
                     (ra, rb),
-                    params.effective_modulus,
+                    params,
                     r_star,
                     m_star,
                     speed,
-                    params.bond.as_ref(),
                 ));
             }
         }
@@ -197,11 +203,10 @@ pub fn report(sim: &Simulation) -> CheckReport {
             pairs.push(pair_row(
                 names(a, None),
                 (lo_a, f64::INFINITY),
-                params.effective_modulus,
+                params,
                 lo_a,
                 mass(a, lo_a),
                 speed,
-                None,
             ));
         }
     }
@@ -210,6 +215,7 @@ pub fn report(sim: &Simulation) -> CheckReport {
     let mut recommended = MAX_RAYLEIGH_FRACTION * rayleigh;
     let mut warnings = Vec::new();
     let dt = model.dt;
+    let mut stability_limit = (f64::INFINITY, String::from("no contact expected"));
     if dt > MAX_RAYLEIGH_FRACTION * rayleigh {
         warnings.push(format!(
             "dt = {dt:.3e} s exceeds {MAX_RAYLEIGH_FRACTION} × the Rayleigh time {rayleigh:.3e} s"
@@ -224,6 +230,12 @@ pub fn report(sim: &Simulation) -> CheckReport {
         } else {
             format!("{}–wall (r = {:.3e} m)", row.materials.0, row.radii.0)
         };
+        if row.stability_limit < stability_limit.0 {
+            stability_limit = (
+                row.stability_limit,
+                format!("{label} at the largest overlap of a {speed:.3} m/s impact"),
+            );
+        }
         if row.contact_time.is_finite() {
             recommended = recommended.min(row.contact_time / RECOMMENDED_STEPS_PER_CONTACT);
             if dt > row.contact_time / MIN_STEPS_PER_CONTACT {
@@ -248,6 +260,20 @@ pub fn report(sim: &Simulation) -> CheckReport {
             }
         }
     }
+    if let Some(now) = sim.stability_limit_now() {
+        if now.dt_max < stability_limit.0 {
+            let pair = match now.ids {
+                (a, Some(b)) => format!("particles {a} and {b}"),
+                (a, None) => format!("particle {a} and a wall"),
+            };
+            stability_limit = (
+                now.dt_max,
+                format!("{pair} at their initial overlap {:.3e} m", now.overlap),
+            );
+        }
+    }
+    // Half the limit keeps the amplification well inside the unit disk (M.70).
+    recommended = recommended.min(0.5 * stability_limit.0);
     let smallest_radius = particles
         .radius
         .iter()
@@ -289,6 +315,7 @@ pub fn report(sim: &Simulation) -> CheckReport {
         rayleigh_time: rayleigh,
         initial_overlap_ratio,
         recommended_dt: recommended,
+        stability_limit,
         warnings,
     }
 }
@@ -296,18 +323,38 @@ pub fn report(sim: &Simulation) -> CheckReport {
 fn pair_row(
     materials: (String, String),
     radii: (f64, f64),
-    e_star: f64,
+    params: &NormalParams,
     r_star: f64,
     m_star: f64,
     speed: f64,
-    bond: Option<&BondParams>,
 ) -> PairRow {
+    let (e_star, damping_ratio, bond) = (
+        params.effective_modulus,
+        params.damping_ratio,
+        params.bond.as_ref(),
+    );
     let contact_time = if speed > 0.0 {
         hertz::contact_time(m_star, e_star, r_star, speed)
     } else {
         f64::INFINITY
     };
+    let impact_overlap = hertz::max_overlap(m_star, e_star, r_star, speed);
+    let mut stability_limit = integrate::stability_limit(
+        hertz::stiffness(e_star, r_star, impact_overlap),
+        m_star,
+        damping_ratio,
+    );
+    if let Some(b) = bond {
+        for overlap in [b.equilibrium_overlap(e_star, r_star), impact_overlap] {
+            stability_limit = stability_limit.min(integrate::stability_limit(
+                b.stiffness(e_star, r_star, overlap),
+                m_star,
+                b.damping_ratio,
+            ));
+        }
+    }
     PairRow {
+        stability_limit,
         materials,
         radii,
         effective_modulus: e_star,
@@ -326,6 +373,20 @@ fn pair_row(
     }
 }
 
+impl CheckReport {
+    /// Why the scene's dt is beyond its stability limit (M.70), or `None` if it is within.
+    /// A run refuses such a scene unless forced.
+    #[must_use]
+    pub fn instability(&self) -> Option<String> {
+        (self.dt > self.stability_limit.0).then(|| {
+            format!(
+                "simulation.dt_s = {:.3e} s is beyond the stability limit {:.3e} s of velocity Verlet for the stiffest contact ({}): the run would blow up. Use dt ≤ {:.3e} s (recommended), or run with --force to try anyway",
+                self.dt, self.stability_limit.0, self.stability_limit.1, self.recommended_dt
+            )
+        })
+    }
+}
+
 impl fmt::Display for CheckReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
@@ -341,7 +402,7 @@ impl fmt::Display for CheckReport {
         writeln!(f)?;
         for row in &self.pairs {
             let mut line = format!(
-                "{} – {} (r = {:.4e} m, {}):\n    E* = {:.4e} Pa, r* = {:.4e} m, m* = {:.4e} kg, Hertz contact time {}",
+                "{} – {} (r = {:.4e} m, {}):\n    E* = {:.4e} Pa, r* = {:.4e} m, m* = {:.4e} kg, Hertz contact time {}, stable dt ≤ {:.3e} s",
                 row.materials.0,
                 row.materials.1,
                 row.radii.0,
@@ -362,6 +423,7 @@ impl fmt::Display for CheckReport {
                 } else {
                     "n/a (no impact expected)".into()
                 },
+                row.stability_limit,
             );
             if let Some(b) = &row.bond {
                 let _ = write!(
@@ -393,6 +455,13 @@ impl fmt::Display for CheckReport {
         )?;
         writeln!(
             f,
+            "stability limit: dt ≤ {:.3e} s (set by {}); dt = {:.3} × the limit",
+            self.stability_limit.0,
+            self.stability_limit.1,
+            self.dt / self.stability_limit.0
+        )?;
+        writeln!(
+            f,
             "recommended dt ≤ {:.3e} s (≥ {RECOMMENDED_STEPS_PER_CONTACT} steps per contact and per bond oscillation, ≤ {MAX_RAYLEIGH_FRACTION} × Rayleigh time)",
             self.recommended_dt
         )?;
@@ -408,7 +477,9 @@ impl fmt::Display for CheckReport {
                 writeln!(f, "laser ray-casting cell: {cell:.3e} m")?;
             }
         }
-        if self.warnings.is_empty() {
+        if let Some(reason) = self.instability() {
+            writeln!(f, "error: {reason}")?;
+        } else if self.warnings.is_empty() {
             writeln!(f, "time step: OK")?;
         } else {
             for w in &self.warnings {

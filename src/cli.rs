@@ -68,6 +68,9 @@ struct RunArgs {
     /// frames are appended to it.
     #[arg(long, value_name = "FILE.h5")]
     restart: Option<PathBuf>,
+    /// Run even when dt is beyond the scene's stability limit (see `am-sim check`).
+    #[arg(long)]
+    force: bool,
 }
 
 /// How a run ended without error.
@@ -176,12 +179,16 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
     };
     let scene_text =
         std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let report = check::report(&sim);
+    let instability = report.instability();
+    if let (Some(reason), false) = (&instability, args.force) {
+        return Err(format!("{}: {reason}", path.display()));
+    }
     // Output files are opened last, after every check that can refuse the run.
     let mut writers = Writers::open(&sim, &scene_text, args.overwrite, args.restart.as_deref())
         .map_err(|e| e.to_string())?;
 
     let model = &sim.model;
-    let report = check::report(&sim);
     let title = if model.title.is_empty() {
         String::new()
     } else {
@@ -200,7 +207,7 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
         model.dt,
         model.dt * model.steps as f64,
     );
-    for w in &report.warnings {
+    for w in report.warnings.iter().chain(&instability) {
         say!("warning: {w}");
     }
 

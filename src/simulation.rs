@@ -107,6 +107,17 @@ pub struct Diagnostics {
     pub thermal: Option<ThermalDiagnostics>,
 }
 
+/// The contact that limits the time step most (M.70).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StabilityLimit {
+    /// Largest stable dt for that contact [s].
+    pub dt_max: f64,
+    /// Its particle ids (the second is `None` for a wall).
+    pub ids: (u64, Option<u64>),
+    /// Its overlap [m].
+    pub overlap: f64,
+}
+
 /// Thermal quantities of the current state.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ThermalDiagnostics {
@@ -533,6 +544,69 @@ impl Simulation {
             substeps: t.substeps,
         });
         d
+    }
+
+    /// The tightest time-step stability limit (M.70) over the contacts of the current state:
+    /// each touching pair or wall contact with its tangent stiffness at its overlap (Hertz M.5,
+    /// or eq. 24 when bonded) and its damping ratio. `None` without contacts.
+    #[must_use]
+    pub fn stability_limit_now(&self) -> Option<StabilityLimit> {
+        let p = &self.particles;
+        let mut tightest: Option<StabilityLimit> = None;
+        let mut consider = |limit: f64, ids: (u64, Option<u64>), overlap: f64| {
+            if tightest.is_none_or(|t| limit < t.dt_max) {
+                tightest = Some(StabilityLimit {
+                    dt_max: limit,
+                    ids,
+                    overlap,
+                });
+            }
+        };
+        for (pair, (result, state)) in self
+            .neighbors
+            .pairs
+            .iter()
+            .zip(self.pair_results.iter().zip(&self.bond_states))
+        {
+            if result.overlap <= 0.0 {
+                continue;
+            }
+            let (a, b) = (pair[0] as usize, pair[1] as usize);
+            let params = self.model.pair_params(p.material[a], p.material[b]);
+            let r_star = hertz::effective_radius(p.radius[a], p.radius[b]);
+            let m_star = hertz::effective_mass(p.mass[a], p.mass[b]);
+            let (stiffness, damping_ratio) = match (state, &params.bond) {
+                (BondState::Bonded, Some(bond)) => (
+                    bond.stiffness(params.effective_modulus, r_star, result.overlap),
+                    bond.damping_ratio,
+                ),
+                _ => (
+                    hertz::stiffness(params.effective_modulus, r_star, result.overlap),
+                    params.damping_ratio,
+                ),
+            };
+            consider(
+                integrate::stability_limit(stiffness, m_star, damping_ratio),
+                (p.id[a], Some(p.id[b])),
+                result.overlap,
+            );
+        }
+        for k in 0..p.len() {
+            for w in 0..self.model.walls.len() {
+                let overlap = forces::wall_overlap(&self.model, p, k, w);
+                if overlap > 0.0 {
+                    let params = self.model.wall_params(w, p.material[k]);
+                    let stiffness =
+                        hertz::stiffness(params.effective_modulus, p.radius[k], overlap);
+                    consider(
+                        integrate::stability_limit(stiffness, p.mass[k], params.damping_ratio),
+                        (p.id[k], None),
+                        overlap,
+                    );
+                }
+            }
+        }
+        tightest
     }
 
     /// Smallest thermal time constant `min C_i/G_i` [s] at the current state (M.49), for scenes
