@@ -48,7 +48,14 @@ pub struct OutputFile {
     frames: Vec<FrameMeta>,
     point_index_len: usize,
     columns: Vec<SeriesColumn>,
+    /// When the XDMF file was last rewritten, and with how many frames.
+    xdmf_written: Option<(std::time::Instant, usize)>,
 }
+
+/// Frames after which the XDMF file is rewritten at most every [`XDMF_REWRITE_INTERVAL`].
+const XDMF_EAGER_FRAMES: usize = 16;
+/// Shortest wall time between two XDMF rewrites once past [`XDMF_EAGER_FRAMES`].
+const XDMF_REWRITE_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
 
 impl std::fmt::Debug for OutputFile {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -127,13 +134,14 @@ impl OutputFile {
             file.flush()
         };
         build().on(path)?;
-        let out = Self {
+        let mut out = Self {
             file,
             path: path.to_path_buf(),
             deflate,
             frames: Vec::new(),
             point_index_len: 0,
             columns: series_columns(thermal),
+            xdmf_written: None,
         };
         out.write_xdmf()?;
         Ok(out)
@@ -185,6 +193,7 @@ impl OutputFile {
             frames,
             point_index_len,
             columns: series_columns(thermal),
+            xdmf_written: None,
         })
     }
 
@@ -228,7 +237,16 @@ impl OutputFile {
         }
         self.file.flush().on(&self.path)?;
         self.frames.push(FrameMeta::of(frame, name));
-        self.write_xdmf()?;
+        // Rewriting the XDMF file costs O(frames): doing it for every frame made long runs
+        // quadratic (1000 frames of two particles: a third of the run). The first frames go out
+        // at once, so ParaView can open a fresh run; later ones at most once a second; `close`
+        // writes the rest.
+        let stale = self
+            .xdmf_written
+            .is_none_or(|(at, _)| at.elapsed() >= XDMF_REWRITE_INTERVAL);
+        if self.frames.len() <= XDMF_EAGER_FRAMES || stale {
+            self.write_xdmf()?;
+        }
         Ok(index)
     }
 
@@ -257,7 +275,13 @@ impl OutputFile {
     ///
     /// # Errors
     /// HDF5 errors.
-    pub fn close(self) -> Result<()> {
+    pub fn close(mut self) -> Result<()> {
+        if self
+            .xdmf_written
+            .is_none_or(|(_, n)| n != self.frames.len())
+        {
+            self.write_xdmf()?;
+        }
         self.file.flush().on(&self.path)?;
         self.file.close().on(&self.path)
     }
@@ -360,7 +384,8 @@ impl OutputFile {
         Ok(())
     }
 
-    fn write_xdmf(&self) -> Result<()> {
+    fn write_xdmf(&mut self) -> Result<()> {
+        self.xdmf_written = Some((std::time::Instant::now(), self.frames.len()));
         let h5_name = self
             .path
             .file_name()
