@@ -14,7 +14,7 @@ use crate::check;
 use crate::model::Model;
 use crate::output::Writers;
 use crate::scene::Scene;
-use crate::simulation::{Diagnostics, Simulation};
+use crate::simulation::{Diagnostics, GuardTrip, Simulation};
 
 /// Prints to stdout. A closed pipe (`am-sim check scene.toml | head`) ends the output quietly
 /// instead of panicking as `println!` does.
@@ -221,9 +221,10 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
     let outcome = pool.install(|| run_loop(&mut sim, &mut writers, args.quiet, &interrupted));
     let files = writers.files(&sim);
     let closed = writers.close().map_err(|e| e.to_string());
-    let (initial, wall, ending) = outcome?;
+    let outcome = outcome?;
     closed?;
-    print_summary(&sim, &initial, wall, threads);
+    print_summary(&sim, &outcome, threads);
+    let ending = outcome.ending;
     for line in files {
         say!("{line}");
     }
@@ -237,35 +238,59 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
     Ok(ending)
 }
 
-/// Steps the simulation to the end, writing frames and series; stops on a non-finite value
-/// before anything invalid is written, and after the current step on Ctrl-C. Returns the
-/// initial diagnostics and the wall time [s].
+/// What the run loop hands to the summary.
+struct LoopOutcome {
+    initial: Diagnostics,
+    wall: f64,
+    ending: Ending,
+    /// Largest dt / stability limit seen at a series row or frame.
+    peak_stability_ratio: f64,
+}
+
+/// Steps the simulation to the end, writing frames and series. The guards (docs/stability.md)
+/// are checked every step (non-finite forces, overlaps) and wherever diagnostics are taken
+/// (energy blow-up, non-finite particle values): a tripped guard stops the run with the step, the
+/// particles and the quantity, after writing the state as the last frame if it is finite, and
+/// never writes anything invalid. Ctrl-C stops after the current step.
 fn run_loop(
     sim: &mut Simulation,
     writers: &mut Writers,
     quiet: bool,
     interrupted: &AtomicBool,
-) -> Result<(Diagnostics, f64, Ending), String> {
+) -> Result<LoopOutcome, String> {
     let start = Instant::now();
     let initial = sim.diagnostics();
     let steps = sim.model.steps;
-    let check_and_write = |sim: &Simulation,
-                           writers: &mut Writers,
-                           last: bool|
-     -> Result<(), String> {
-        if !writers.due(sim.step, last) {
-            return Ok(());
-        }
-        if let Some((id, field)) = sim.first_non_finite() {
-            return Err(format!(
-                "step {} (t = {:.6e} s): particle id {id} has a non-finite {field}; the run is stopped and nothing invalid was written (check dt with `am-sim check`)",
-                sim.step, sim.time
-            ));
-        }
-        writers
-            .write(sim, start.elapsed().as_secs_f64(), last)
-            .map_err(|e| e.to_string())
-    };
+    let mut peak_stability_ratio = initial.stability_ratio;
+    let mut check_and_write =
+        |sim: &Simulation, writers: &mut Writers, last: bool| -> Result<(), String> {
+            if let Some(trip) = sim.guard_trip() {
+                return Err(stop(sim, writers, &trip, start.elapsed().as_secs_f64()));
+            }
+            if !writers.due(sim.step, last) {
+                return Ok(());
+            }
+            if let Some((id, field)) = sim.first_non_finite() {
+                return Err(stop(
+                    sim,
+                    writers,
+                    &GuardTrip {
+                        quantity: format!("a non-finite {field}"),
+                        ids: vec![id],
+                        state_is_finite: false,
+                    },
+                    start.elapsed().as_secs_f64(),
+                ));
+            }
+            let d = sim.diagnostics();
+            peak_stability_ratio = peak_stability_ratio.max(d.stability_ratio);
+            if let Some(trip) = sim.energy_guard_trip(&d) {
+                return Err(stop(sim, writers, &trip, start.elapsed().as_secs_f64()));
+            }
+            writers
+                .write(sim, &d, start.elapsed().as_secs_f64(), last)
+                .map_err(|e| e.to_string())
+        };
     check_and_write(sim, writers, false)?;
     let bar = if quiet {
         ProgressBar::hidden()
@@ -298,13 +323,50 @@ fn run_loop(
         }
     }
     bar.finish_and_clear();
-    Ok((initial, start.elapsed().as_secs_f64(), ending))
+    Ok(LoopOutcome {
+        initial,
+        wall: start.elapsed().as_secs_f64(),
+        ending,
+        peak_stability_ratio,
+    })
+}
+
+/// Ends a run on a tripped guard: writes the current state as the last frame when it is finite,
+/// and returns the message naming the step, the particles and the quantity.
+fn stop(sim: &Simulation, writers: &mut Writers, trip: &GuardTrip, wall: f64) -> String {
+    let ids: Vec<String> = trip.ids.iter().map(u64::to_string).collect();
+    let particles = match ids.len() {
+        1 => format!("particle id {}", ids[0]),
+        _ => format!("particle ids {}", ids.join(", ")),
+    };
+    let mut message = format!(
+        "step {} (t = {:.6e} s): {particles}: {}; the run is stopped",
+        sim.step, sim.time, trip.quantity
+    );
+    let written = trip.state_is_finite && {
+        // A finite state is worth keeping: it shows where the run went wrong.
+        let d = sim.diagnostics();
+        d.mechanical_energy().is_finite() && writers.write(sim, &d, wall, true).is_ok()
+    };
+    if written {
+        message.push_str(", and this state (finite) is the last frame of the output");
+    } else {
+        match writers.last_frame_step() {
+            Some(step) => message.push_str(&format!(
+                "; nothing invalid was written: the last good frame is step {step}"
+            )),
+            None => message.push_str("; nothing invalid was written"),
+        }
+    }
+    message.push_str(" (check dt and the scene with `am-sim check`; docs/stability.md)");
+    message
 }
 
 #[allow(clippy::cast_precision_loss)]
-fn print_summary(sim: &Simulation, initial: &Diagnostics, wall: f64, threads: usize) {
+fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
     let d = sim.diagnostics();
-    let particle_steps = sim.particles.len() as f64 * d.step as f64;
+    let (initial, wall) = (&outcome.initial, outcome.wall);
+    let particle_steps = sim.particles.len() as f64 * (d.step - initial.step) as f64;
     say!(
         "done: {} steps, simulated {:.4e} s in {:.3} s wall time ({threads} threads)",
         d.step,
@@ -323,33 +385,26 @@ fn print_summary(sim: &Simulation, initial: &Diagnostics, wall: f64, threads: us
         d.bonds,
         d.neighbor_builds
     );
-    // (M.35): kinetic + gravitational + elastic energy plus what damping and bond formation
-    // took must stay constant; the residual is the integrator's energy error.
-    let (e0, e1) = (initial.mechanical_energy(), d.mechanical_energy());
+    // The run's own error indicators, beside its wall time (docs/stability.md, docs/accuracy.md).
     let lost = d.dissipated_energy - initial.dissipated_energy;
-    let scale = [initial.kinetic_energy, e0, e1, lost, d.kinetic_energy]
-        .iter()
-        .fold(f64::MIN_POSITIVE, |m, x| m.max(x.abs()));
     say!(
-        "  energy: mechanical {e0:.6e} J → {e1:.6e} J, lost to damping and bonding {lost:.6e} J; balance residual {:.2e} relative",
-        (e1 + lost - e0).abs() / scale
+        "  energy: mechanical {:.6e} J → {:.6e} J, lost to damping and bonding {lost:.6e} J",
+        initial.mechanical_energy(),
+        d.mechanical_energy()
     );
     say!(
-        "  largest overlap now: {:.4e} m ({:.3} % of the smaller radius); kinetic energy {:.4e} J",
+        "  error indicators: energy balance residual {:.2e} relative (M.35); largest overlap {:.3} % of the smaller radius (every step); dt = {:.3} × the stability limit at most (M.70, at output steps)",
+        d.energy_residual.abs(),
+        100.0 * d.peak_overlap_ratio,
+        outcome.peak_stability_ratio.max(d.stability_ratio)
+    );
+    say!(
+        "  now: largest overlap {:.4e} m ({:.3} % of the smaller radius); kinetic energy {:.4e} J",
         d.max_overlap,
         100.0 * d.max_overlap_ratio,
         d.kinetic_energy
     );
     if let (Some(t0), Some(t1)) = (initial.thermal, d.thermal) {
-        // Since the start of this run (a resumed run starts with the energies it had).
-        let stored = t1.enthalpy - t0.enthalpy;
-        let supplied =
-            (t1.laser_energy - t0.laser_energy) + (t1.boundary_energy - t0.boundary_energy);
-        let scale = t1
-            .laser_energy
-            .abs()
-            .max(t1.boundary_energy.abs())
-            .max(t0.enthalpy.abs() * f64::EPSILON);
         say!(
             "  thermal: max temperature {:.1} K, {} particles melted; laser absorbed {:.4e} J, boundaries {:+.4e} J",
             t1.max_temperature,
@@ -357,9 +412,15 @@ fn print_summary(sim: &Simulation, initial: &Diagnostics, wall: f64, threads: us
             t1.laser_energy,
             t1.boundary_energy
         );
+        // Since the start of this run (a resumed run starts with the energies it had).
+        let stored = t1.enthalpy - t0.enthalpy;
+        let supplied =
+            (t1.laser_energy - t0.laser_energy) + (t1.boundary_energy - t0.boundary_energy);
         say!(
-            "  heat balance: stored {stored:+.6e} J vs supplied {supplied:+.6e} J (residual {:.2e} relative)",
-            (stored - supplied).abs() / scale
+            "  heat balance: stored {stored:+.6e} J vs supplied {supplied:+.6e} J (residual {:.2e} relative); dt over the smallest thermal time constant {:.3e} (last step), {} substeps per step at most",
+            t1.heat_residual.abs(),
+            t1.time_step_ratio,
+            sim.thermal.as_ref().map_or(0, |t| t.max_substeps)
         );
     }
 }

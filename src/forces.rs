@@ -199,15 +199,65 @@ pub struct GatherHeat<'a> {
     pub total_conductance: &'a mut [f64],
 }
 
+/// What the gather pass saw, reduced over particles in a thread-count-independent way (max, and
+/// the lowest index on ties): the inputs of the run's per-step guards (docs/stability.md).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GatherSummary {
+    /// `max G_i / C_i` [1/s] with `[thermal]`, 0 otherwise (M.49).
+    pub max_heat_rate: f64,
+    /// Largest overlap of any contact (particle or wall) of a particle divided by that particle's
+    /// radius; over all particles this is the largest overlap relative to the smaller radius of
+    /// its pair, since each pair is seen from both ends.
+    pub max_overlap_ratio: f64,
+    /// The particle (index) where `max_overlap_ratio` was seen.
+    pub max_overlap_particle: usize,
+    /// The lowest particle index whose summed force is NaN or infinite.
+    pub non_finite_force: Option<usize>,
+}
+
+impl GatherSummary {
+    fn of(k: usize, heat_rate: f64, overlap_ratio: f64, force: DVec3) -> Self {
+        Self {
+            max_heat_rate: heat_rate,
+            max_overlap_ratio: overlap_ratio,
+            max_overlap_particle: k,
+            non_finite_force: (!force.is_finite()).then_some(k),
+        }
+    }
+
+    /// Combines two partial summaries; associative and commutative, so any reduction tree gives
+    /// the same result.
+    #[must_use]
+    fn merge(self, other: Self) -> Self {
+        let overlap = if other.max_overlap_ratio > self.max_overlap_ratio
+            || (other.max_overlap_ratio == self.max_overlap_ratio
+                && other.max_overlap_particle < self.max_overlap_particle)
+        {
+            other
+        } else {
+            self
+        };
+        Self {
+            max_heat_rate: self.max_heat_rate.max(other.max_heat_rate),
+            max_overlap_ratio: overlap.max_overlap_ratio,
+            max_overlap_particle: overlap.max_overlap_particle,
+            non_finite_force: match (self.non_finite_force, other.non_finite_force) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            },
+        }
+    }
+}
+
 /// Gather pass: `particles.force = m g + Σ pair forces (CSR order) + wall forces`; with `heat`,
-/// also each particle's heat flows. Returns `max G_i / C_i` [1/s] (0 without heat).
+/// also each particle's heat flows. Returns what the per-step guards need.
 pub fn gather(
     model: &Model,
     particles: &mut Particles,
     list: &NeighborList,
     results: &[PairResult],
     heat: Option<GatherHeat<'_>>,
-) -> f64 {
+) -> GatherSummary {
     let mut forces = std::mem::take(&mut particles.force);
     let mut dissipated = std::mem::take(&mut particles.dissipated);
     let state = &*particles;
@@ -225,9 +275,10 @@ pub fn gather(
                force: &mut DVec3,
                lost: &mut f64,
                out: Option<(&mut f64, &mut f64, &mut f64)>|
-     -> f64 {
+     -> GatherSummary {
         let mut total = state.mass[k] * model.gravity;
         let mut lost_now = 0.0;
+        let mut max_overlap: f64 = 0.0;
         let (mut exchange, mut conductance_sum) = (0.0, 0.0);
         let t = inputs.map_or(0.0, |(_, temperature, ..)| temperature[k]);
         for incidence in list.incident(k) {
@@ -238,6 +289,7 @@ pub fn gather(
                 -result.force_on_first
             };
             lost_now += 0.5 * result.lost;
+            max_overlap = max_overlap.max(result.overlap);
             // Only touching pairs conduct: testing the overlap (already loaded with the force)
             // saves a random read of the conductance array for the other candidates.
             if let Some((_, temperature, conductance, ..)) = inputs.filter(|_| result.overlap > 0.0)
@@ -252,6 +304,7 @@ pub fn gather(
         for w in 0..model.walls.len() {
             let overlap = wall_overlap(model, state, k, w);
             if overlap > 0.0 {
+                max_overlap = max_overlap.max(overlap);
                 let normal = model.walls[w].normal;
                 let params = model.wall_params(w, state.material[k]);
                 // A fixed plane is the limit r_j, m_j → ∞: r* = r_k, m* = m_k.
@@ -273,7 +326,7 @@ pub fn gather(
         }
         *force = total;
         *lost += lost_now;
-        match (out, inputs) {
+        let heat_rate = match (out, inputs) {
             (Some((q, boundary, g)), Some((thermal_model, _, _, laser_power, heat_capacity))) => {
                 let (outside, outside_conductance) =
                     thermal::boundary_heat(thermal_model, &model.walls, state, k, t);
@@ -283,10 +336,11 @@ pub fn gather(
                 *g / heat_capacity[k]
             }
             _ => 0.0,
-        }
+        };
+        GatherSummary::of(k, heat_rate, max_overlap / state.radius[k], total)
     };
     let parallel = crate::worth_parallel(forces.len());
-    let worst = match (heat, parallel) {
+    let summary = match (heat, parallel) {
         (Some(h), true) => {
             let out = h
                 .heat_flow
@@ -299,7 +353,7 @@ pub fn gather(
                 .zip(out)
                 .enumerate()
                 .map(|(k, ((f, d), ((q, b), g)))| sum(k, f, d, Some((q, b, g))))
-                .reduce(|| 0.0, f64::max)
+                .reduce(GatherSummary::default, GatherSummary::merge)
         }
         (Some(h), false) => {
             let out = h
@@ -313,30 +367,22 @@ pub fn gather(
                 .zip(out)
                 .enumerate()
                 .map(|(k, ((f, d), ((q, b), g)))| sum(k, f, d, Some((q, b, g))))
-                .fold(0.0, f64::max)
+                .fold(GatherSummary::default(), GatherSummary::merge)
         }
-        (None, true) => {
-            forces
-                .par_iter_mut()
-                .zip(dissipated.par_iter_mut())
-                .enumerate()
-                .for_each(|(k, (f, d))| {
-                    sum(k, f, d, None);
-                });
-            0.0
-        }
-        (None, false) => {
-            forces
-                .iter_mut()
-                .zip(dissipated.iter_mut())
-                .enumerate()
-                .for_each(|(k, (f, d))| {
-                    sum(k, f, d, None);
-                });
-            0.0
-        }
+        (None, true) => forces
+            .par_iter_mut()
+            .zip(dissipated.par_iter_mut())
+            .enumerate()
+            .map(|(k, (f, d))| sum(k, f, d, None))
+            .reduce(GatherSummary::default, GatherSummary::merge),
+        (None, false) => forces
+            .iter_mut()
+            .zip(dissipated.iter_mut())
+            .enumerate()
+            .map(|(k, (f, d))| sum(k, f, d, None))
+            .fold(GatherSummary::default(), GatherSummary::merge),
     };
     particles.force = forces;
     particles.dissipated = dissipated;
-    worst
+    summary
 }

@@ -127,6 +127,29 @@ impl OutputSettings {
     }
 }
 
+/// The run's guards: it stops, naming the step, the particles and the quantity, when one trips.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Guards {
+    /// Largest overlap relative to the smaller radius of its pair.
+    pub max_overlap_ratio: f64,
+    /// Largest relative mechanical energy created (M.35 residual).
+    pub max_energy_residual: f64,
+}
+
+impl Guards {
+    fn from_scene(config: Option<&crate::scene::GuardsConfig>) -> Self {
+        let config = config.cloned().unwrap_or_default();
+        Self {
+            max_overlap_ratio: config
+                .max_overlap_ratio
+                .unwrap_or(crate::scene::DEFAULT_MAX_OVERLAP_RATIO),
+            max_energy_residual: config
+                .max_energy_residual
+                .unwrap_or(crate::scene::DEFAULT_MAX_ENERGY_RESIDUAL),
+        }
+    }
+}
+
 /// Resolved, immutable run parameters.
 #[derive(Debug, Clone)]
 pub struct Model {
@@ -148,6 +171,8 @@ pub struct Model {
     pub bond_criterion: BondCriterion,
     /// User's largest expected impact speed [m/s], if given.
     pub expected_impact_speed: Option<f64>,
+    /// When the run stops itself (docs/stability.md).
+    pub guards: Guards,
     /// Output settings.
     pub output: OutputSettings,
     /// Thermal parameters, if the scene has `[thermal]`.
@@ -289,6 +314,7 @@ impl Model {
             thermal: scene.thermal.as_ref().map(|t| thermal_model(scene, t)),
             laser: scene.laser.as_ref().map(|l| laser(l, smallest_radius)),
             expected_impact_speed: sim.expected_impact_speed_m_s,
+            guards: Guards::from_scene(scene.guards.as_ref()),
             output: OutputSettings::resolve(scene, steps),
             pair_params,
             wall_params,

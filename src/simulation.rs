@@ -14,7 +14,7 @@
 //! 7. Second half kick (M.32).
 
 use crate::contact::{BondState, hertz};
-use crate::forces::{self, PairResult};
+use crate::forces::{self, GatherSummary, PairResult};
 use crate::integrate;
 use crate::laser;
 use crate::model::Model;
@@ -36,10 +36,37 @@ pub struct Simulation {
     /// allocated and no thermal pass runs).
     pub thermal: Option<ThermalState>,
     laser_snapshot: laser::Snapshot,
+    /// What the last gather pass saw (the per-step guards read it).
+    gather_summary: GatherSummary,
+    /// Largest overlap ratio of any step of this run so far.
+    peak_overlap_ratio: f64,
+    /// Energies this run started from (the balances are measured against them).
+    start: StartEnergies,
     /// Steps taken.
     pub step: u64,
     /// Simulated time [s].
     pub time: f64,
+}
+
+/// Energies at the start of a run (t = 0, or the step a resumed run starts from) [J].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct StartEnergies {
+    kinetic: f64,
+    gravitational: f64,
+    elastic: f64,
+    dissipated: f64,
+    thermal: Option<ThermalDiagnostics>,
+}
+
+/// Why a run stopped itself (docs/stability.md): the step, the particles and the quantity.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GuardTrip {
+    /// What tripped, with its value and limit.
+    pub quantity: String,
+    /// The particle ids involved.
+    pub ids: Vec<u64>,
+    /// Whether the current state is finite and may be written as the last frame.
+    pub state_is_finite: bool,
 }
 
 /// What a resumed run needs beyond positions and velocities (see [`Simulation::restart_state`]).
@@ -101,6 +128,13 @@ pub struct Diagnostics {
     pub max_overlap: f64,
     /// Largest overlap relative to the smaller radius of its pair.
     pub max_overlap_ratio: f64,
+    /// Largest overlap ratio met at any step of this run so far (every step is checked).
+    pub peak_overlap_ratio: f64,
+    /// dt over the stability limit (M.70) of the stiffest contact now; > 1 is unstable.
+    pub stability_ratio: f64,
+    /// Mechanical energy balance (M.35) since the start of this run, relative to the energy
+    /// scale of the run (see [`Simulation::diagnostics`]); positive when energy was created.
+    pub energy_residual: f64,
     /// Neighbour-list builds so far.
     pub neighbor_builds: u64,
     /// Thermal quantities, for scenes with `[thermal]`.
@@ -133,6 +167,11 @@ pub struct ThermalDiagnostics {
     pub melted: usize,
     /// Thermal substeps of the last step.
     pub substeps: u32,
+    /// dt over the smallest thermal time constant `C_i/G_i` of the last step (M.49); the
+    /// substeps keep each substep's share below the scene's `substep_fraction`.
+    pub time_step_ratio: f64,
+    /// Heat balance since the start of this run: (stored − supplied) / scale (M.48).
+    pub heat_residual: f64,
 }
 
 impl Diagnostics {
@@ -160,15 +199,32 @@ impl Simulation {
             pair_results: Vec::new(),
             thermal,
             laser_snapshot: laser::Snapshot::default(),
+            gather_summary: GatherSummary::default(),
+            peak_overlap_ratio: 0.0,
+            start: StartEnergies::default(),
             step: 0,
             time: 0.0,
         };
         sim.rebuild_neighbors();
-        sim.compute_forces();
+        sim.gather_summary = sim.compute_forces();
         // The t = 0 evaluation did no work over time; the energy the run starts with already
         // counts any bond it formed.
         sim.particles.dissipated.fill(0.0);
+        sim.mark_start();
         sim
+    }
+
+    /// Takes the current state as the reference of the run's energy balances.
+    fn mark_start(&mut self) {
+        let d = self.diagnostics();
+        self.peak_overlap_ratio = d.max_overlap_ratio;
+        self.start = StartEnergies {
+            kinetic: d.kinetic_energy,
+            gravitational: d.gravitational_energy,
+            elastic: d.elastic_energy,
+            dissipated: d.dissipated_energy,
+            thermal: d.thermal,
+        };
     }
 
     /// Everything beyond positions and velocities that the next step depends on, so that a run
@@ -256,6 +312,9 @@ impl Simulation {
             pair_results: Vec::new(),
             thermal,
             laser_snapshot: state.laser.unwrap_or_default(),
+            gather_summary: GatherSummary::default(),
+            peak_overlap_ratio: 0.0,
+            start: StartEnergies::default(),
             step: state.step,
             time: 0.0,
         };
@@ -283,6 +342,7 @@ impl Simulation {
             };
         }
         sim.update_conductances();
+        sim.mark_start();
         Ok(sim)
     }
 
@@ -332,7 +392,7 @@ impl Simulation {
 
     /// Pair pass and gather (steps 3-4). With `[thermal]` they also compute the contact
     /// conductances and the first substep's heat flows; returns `max G_i / C_i` then.
-    fn compute_forces(&mut self) -> Option<f64> {
+    fn compute_forces(&mut self) -> GatherSummary {
         let heat = match (&self.model.thermal, &mut self.thermal) {
             (Some(model), Some(state)) => {
                 state.conductance.resize(self.neighbors.pairs.len(), 0.0);
@@ -377,15 +437,13 @@ impl Simulation {
             }
             _ => None,
         };
-        let thermal = heat.is_some();
-        let worst = forces::gather(
+        forces::gather(
             &self.model,
             &mut self.particles,
             &self.neighbors,
             &self.pair_results,
             heat,
-        );
-        thermal.then_some(worst)
+        )
     }
 
     fn update_conductances(&mut self) {
@@ -453,7 +511,10 @@ impl Simulation {
             self.rebuild_neighbors();
         }
         self.absorb_laser();
-        let first_flows = self.compute_forces();
+        let summary = self.compute_forces();
+        self.peak_overlap_ratio = self.peak_overlap_ratio.max(summary.max_overlap_ratio);
+        self.gather_summary = summary;
+        let first_flows = self.thermal.is_some().then_some(summary.max_heat_rate);
         self.advance_temperatures(first_flows);
         integrate::kick(&mut self.particles, dt);
         self.step += 1;
@@ -542,8 +603,119 @@ impl Simulation {
                 .fold(f64::NEG_INFINITY, f64::max),
             melted: t.melted.iter().filter(|m| **m).count(),
             substeps: t.substeps,
+            time_step_ratio: self.model.dt * self.gather_summary.max_heat_rate,
+            heat_residual: 0.0,
         });
+        d.peak_overlap_ratio = self.peak_overlap_ratio.max(d.max_overlap_ratio);
+        d.stability_ratio = self
+            .stability_limit_now()
+            .map_or(0.0, |limit| self.model.dt / limit.dt_max);
+        self.close_balances(&mut d);
         d
+    }
+
+    /// The balances of this run, against its start (M.35, M.48). The mechanical residual is
+    /// `(E(t) + W_lost − E(0)) / scale`, with the scale the energy the run had or exchanged:
+    /// kinetic and elastic energy at the start, the change of gravitational energy and the energy
+    /// lost (not the gravitational energy itself, which depends on where z = 0 is; and not the
+    /// current energies, so that a blow-up shows as a large residual instead of saturating at 1).
+    fn close_balances(&self, d: &mut Diagnostics) {
+        let start = &self.start;
+        let created = d.mechanical_energy() + d.dissipated_energy
+            - (start.kinetic + start.gravitational + start.elastic + start.dissipated);
+        let scale = [
+            start.kinetic,
+            start.elastic,
+            d.gravitational_energy - start.gravitational,
+            d.dissipated_energy - start.dissipated,
+            // Round-off of the sums, for a run where nothing moves.
+            f64::EPSILON * (d.gravitational_energy.abs() + d.mechanical_energy().abs()),
+        ]
+        .iter()
+        .fold(f64::MIN_POSITIVE, |m, x| m.max(x.abs()));
+        d.energy_residual = created / scale;
+        if let (Some(t), Some(t0)) = (&mut d.thermal, &start.thermal) {
+            let stored = t.enthalpy - t0.enthalpy;
+            let supplied =
+                (t.laser_energy - t0.laser_energy) + (t.boundary_energy - t0.boundary_energy);
+            let scale = t
+                .laser_energy
+                .abs()
+                .max(t.boundary_energy.abs())
+                .max(stored.abs())
+                .max(t0.enthalpy.abs() * f64::EPSILON);
+            t.heat_residual = (stored - supplied) / scale;
+        }
+    }
+
+    /// The per-step guards (docs/stability.md), from what the last force pass saw: a NaN or
+    /// infinite force, or an overlap beyond `guards.max_overlap_ratio`. Costs nothing extra:
+    /// the gather pass reduces both while summing forces.
+    #[must_use]
+    pub fn guard_trip(&self) -> Option<GuardTrip> {
+        let summary = &self.gather_summary;
+        if let Some(k) = summary.non_finite_force {
+            return Some(GuardTrip {
+                quantity: "a non-finite (NaN or infinite) force".into(),
+                ids: vec![self.particles.id[k]],
+                state_is_finite: false,
+            });
+        }
+        let limit = self.model.guards.max_overlap_ratio;
+        if summary.max_overlap_ratio > limit {
+            let k = summary.max_overlap_particle;
+            return Some(GuardTrip {
+                quantity: format!(
+                    "an overlap of {:.3} × the radius (guards.max_overlap_ratio = {limit})",
+                    summary.max_overlap_ratio
+                ),
+                ids: self.deepest_contact_of(k),
+                state_is_finite: integrate::first_non_finite(&self.particles).is_none(),
+            });
+        }
+        None
+    }
+
+    /// The energy guard on measured diagnostics: energy created beyond
+    /// `guards.max_energy_residual` of the run's energy scale.
+    #[must_use]
+    pub fn energy_guard_trip(&self, d: &Diagnostics) -> Option<GuardTrip> {
+        let limit = self.model.guards.max_energy_residual;
+        (d.energy_residual > limit).then(|| {
+            let p = &self.particles;
+            let fastest = (0..p.len()).max_by(|&a, &b| {
+                p.velocity[a]
+                    .length_squared()
+                    .total_cmp(&p.velocity[b].length_squared())
+            });
+            GuardTrip {
+                quantity: format!(
+                    "an energy blow-up (the fastest particle): the mechanical energy balance gained {:.3} × the run's energy scale (guards.max_energy_residual = {limit})",
+                    d.energy_residual
+                ),
+                ids: fastest.map(|k| vec![p.id[k]]).unwrap_or_default(),
+                state_is_finite: integrate::first_non_finite(p).is_none(),
+            }
+        })
+    }
+
+    /// Particle `k` and the partner of its deepest contact (ids; one id for a wall).
+    fn deepest_contact_of(&self, k: usize) -> Vec<u64> {
+        let p = &self.particles;
+        let mut deepest = (f64::NEG_INFINITY, None);
+        for incidence in self.neighbors.incident(k) {
+            let overlap = self.pair_results[incidence.pair as usize].overlap;
+            if overlap > deepest.0 {
+                deepest = (overlap, Some(p.id[incidence.other as usize]));
+            }
+        }
+        for w in 0..self.model.walls.len() {
+            let overlap = forces::wall_overlap(&self.model, p, k, w);
+            if overlap > deepest.0 {
+                deepest = (overlap, None);
+            }
+        }
+        std::iter::once(p.id[k]).chain(deepest.1).collect()
     }
 
     /// The tightest time-step stability limit (M.70) over the contacts of the current state:

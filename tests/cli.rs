@@ -161,3 +161,100 @@ fn usage_errors_are_explained() {
         "refused before opening the output"
     );
 }
+
+/// Every value of every row of a series CSV, parsed.
+fn csv_values(path: &Path) -> Vec<f64> {
+    let csv = std::fs::read_to_string(path).unwrap();
+    csv.lines()
+        .skip(1)
+        .flat_map(|line| line.split(',').map(|v| v.parse::<f64>().unwrap()))
+        .collect()
+}
+
+#[test]
+fn a_dt_beyond_the_stability_limit_is_refused_and_a_forced_run_is_stopped_by_a_guard() {
+    let dir = tempfile::tempdir().unwrap();
+    // Example 5.1 at dt = 4e-5 s, 3.2 × its stability limit (1.26e-5 s, `am-sim check`).
+    let fast = std::fs::read_to_string(scene("paper_5_1_bond.toml"))
+        .unwrap()
+        .replace("dt_s = 5e-7", "dt_s = 4e-5");
+    std::fs::write(dir.path().join("fast.toml"), fast).unwrap();
+    let out = am_sim(dir.path(), &["fast.toml", "-q"]);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("simulation.dt_s = 4.000e-5 s is beyond the stability limit 1.258e-5 s")
+            && stderr.contains("--force"),
+        "{stderr}"
+    );
+    assert!(
+        !dir.path().join("paper_5_1_bond.h5").exists(),
+        "refused runs write nothing"
+    );
+
+    let out = am_sim(dir.path(), &["fast.toml", "-q", "--force"]);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success());
+    for expected in [
+        "step 10 ",
+        "particle id 1",
+        "energy blow-up",
+        "the run is stopped",
+    ] {
+        assert!(stderr.contains(expected), "lacks {expected:?}: {stderr}");
+    }
+    let values = csv_values(&dir.path().join("paper_5_1_bond.csv"));
+    assert!(!values.is_empty() && values.iter().all(|v| v.is_finite()));
+}
+
+#[test]
+fn an_overlap_beyond_the_guard_stops_at_once_naming_both_particles() {
+    let dir = tempfile::tempdir().unwrap();
+    // Two 1 mm spheres overlapping by 35 % of the radius (the default guard is 30 %).
+    let scene_text = r#"
+[scene]
+version = 1
+[simulation]
+dt_s = 1e-8
+duration_s = 1e-6
+[materials.m]
+density_kg_m3 = 2000
+youngs_modulus_pa = 1e9
+poisson_ratio = 0.0
+[contact]
+model = "hertz"
+damping_ratio = 0.0
+[[particles]]
+position_m = [0.0, 0.0, 0.0]
+radius_m = 1e-3
+material = "m"
+[[particles]]
+position_m = [1.65e-3, 0.0, 0.0]
+radius_m = 1e-3
+material = "m"
+[output]
+series_csv = "overlap.csv"
+"#;
+    std::fs::write(dir.path().join("overlap.toml"), scene_text).unwrap();
+    let out = am_sim(dir.path(), &["overlap.toml", "-q"]);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success());
+    for expected in [
+        "step 0 ",
+        "particle ids 0, 1",
+        "an overlap of 0.350 × the radius",
+        "guards.max_overlap_ratio = 0.3",
+    ] {
+        assert!(stderr.contains(expected), "lacks {expected:?}: {stderr}");
+    }
+    // Raising the guard lets the same scene run: the spheres push apart.
+    std::fs::write(
+        dir.path().join("overlap.toml"),
+        format!("{scene_text}[guards]\nmax_overlap_ratio = 0.4\n"),
+    )
+    .unwrap();
+    let out = am_sim(dir.path(), &["overlap.toml", "-q", "--overwrite"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let values = csv_values(&dir.path().join("overlap.csv"));
+    assert!(values.iter().all(|v| v.is_finite()));
+}

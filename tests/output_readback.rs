@@ -20,12 +20,13 @@ fn frames_hold_the_in_memory_state() {
     // Writers resolve the scene's relative file name against the working directory.
     sim.model.output.file = Some(path.clone());
     let mut writers = Writers::open(&sim, &text, false, None).unwrap();
-    writers.write(&sim, 0.0, false).unwrap();
+    writers.write(&sim, &sim.diagnostics(), 0.0, false).unwrap();
     while sim.step < sim.model.steps {
         sim.step();
-        writers
-            .write(&sim, 0.0, sim.step == sim.model.steps)
-            .unwrap();
+        let last = sim.step == sim.model.steps;
+        if writers.due(sim.step, last) {
+            writers.write(&sim, &sim.diagnostics(), 0.0, last).unwrap();
+        }
     }
     writers.close().unwrap();
     assert_eq!(std::env::current_dir().unwrap(), cwd);

@@ -70,7 +70,7 @@ const fn column(name: &'static str, unit: &'static str, kind: SeriesKind) -> Ser
 }
 
 /// Columns of every run.
-pub const SERIES_COLUMNS: [SeriesColumn; 13] = [
+pub const SERIES_COLUMNS: [SeriesColumn; 16] = [
     column("step", "1", SeriesKind::U64),
     column("time_s", "s", SeriesKind::F64),
     column("kinetic_energy_j", "J", SeriesKind::F64),
@@ -84,16 +84,21 @@ pub const SERIES_COLUMNS: [SeriesColumn; 13] = [
     column("max_overlap_ratio", "1", SeriesKind::F64),
     column("wall_time_s", "s", SeriesKind::F64),
     column("dissipated_energy_j", "J", SeriesKind::F64),
+    column("energy_residual", "1", SeriesKind::F64),
+    column("peak_overlap_ratio", "1", SeriesKind::F64),
+    column("stability_ratio", "1", SeriesKind::F64),
 ];
 
 /// Columns added for scenes with `[thermal]` (and only for them).
-pub const THERMAL_COLUMNS: [SeriesColumn; 6] = [
+pub const THERMAL_COLUMNS: [SeriesColumn; 8] = [
     column("enthalpy_j", "J", SeriesKind::F64),
     column("laser_energy_j", "J", SeriesKind::F64),
     column("boundary_heat_j", "J", SeriesKind::F64),
     column("max_temperature_k", "K", SeriesKind::F64),
     column("melted", "1", SeriesKind::U64),
     column("thermal_substeps", "1", SeriesKind::U64),
+    column("thermal_step_ratio", "1", SeriesKind::F64),
+    column("heat_residual", "1", SeriesKind::F64),
 ];
 
 /// The columns of a run's series.
@@ -134,6 +139,9 @@ pub fn series_row(d: &Diagnostics, wall_time_s: f64) -> Vec<SeriesValue> {
         F64(d.max_overlap_ratio),
         F64(wall_time_s),
         F64(d.dissipated_energy),
+        F64(d.energy_residual),
+        F64(d.peak_overlap_ratio),
+        F64(d.stability_ratio),
     ];
     if let Some(t) = d.thermal {
         row.extend([
@@ -143,6 +151,8 @@ pub fn series_row(d: &Diagnostics, wall_time_s: f64) -> Vec<SeriesValue> {
             F64(t.max_temperature),
             count(t.melted),
             U64(u64::from(t.substeps)),
+            F64(t.time_step_ratio),
+            F64(t.heat_residual),
         ]);
     }
     row
@@ -223,25 +233,31 @@ impl Writers {
             || (fresh(self.last_row) && (last || step % self.series_every == 0))
     }
 
-    /// Writes what is due at the current state (see [`Writers::due`]).
+    /// The step of the last frame written (or of the restart point), if any.
+    #[must_use]
+    pub fn last_frame_step(&self) -> Option<u64> {
+        self.last_frame
+    }
+
+    /// Writes what is due at the current state (see [`Writers::due`]); `d` are its diagnostics.
     ///
     /// # Errors
     /// I/O and HDF5 errors.
     pub fn write(
         &mut self,
         sim: &Simulation,
+        d: &Diagnostics,
         wall_time_s: f64,
         last: bool,
     ) -> Result<(), OutputError> {
         let step = sim.step;
         if self.last_row != Some(step) && (last || step % self.series_every == 0) {
-            let d = sim.diagnostics();
             if let Some(csv) = &mut self.csv {
-                csv.write(&d, wall_time_s)?;
+                csv.write(d, wall_time_s)?;
             }
             #[cfg(feature = "hdf5")]
             if let Some(file) = &mut self.hdf5 {
-                file.append_series(&series_row(&d, wall_time_s))?;
+                file.append_series(&series_row(d, wall_time_s))?;
             }
             self.last_row = Some(step);
         }

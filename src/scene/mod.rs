@@ -48,7 +48,28 @@ pub struct Scene {
     pub thermal: Option<ThermalConfig>,
     /// `[laser]`: a moving Gaussian beam (needs `[thermal]`).
     pub laser: Option<LaserConfig>,
+    /// `[guards]`: limits at which a run stops (docs/stability.md); defaults apply when absent.
+    pub guards: Option<GuardsConfig>,
 }
+
+/// `[guards]`: when a run stops itself instead of writing a state that is no longer physical.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GuardsConfig {
+    /// Stop when an overlap exceeds this fraction of the smaller radius of its pair, `> 0`;
+    /// default [`DEFAULT_MAX_OVERLAP_RATIO`].
+    pub max_overlap_ratio: Option<f64>,
+    /// Stop when the mechanical energy balance (M.35) shows more than this fraction of the
+    /// energy scale created from nothing, `> 0`; default [`DEFAULT_MAX_ENERGY_RESIDUAL`].
+    pub max_energy_residual: Option<f64>,
+}
+
+/// Default `guards.max_overlap_ratio`: at δ = 0.3 r Hertz theory (δ ≪ r) no longer describes
+/// the contact, and a run that gets there has a time step or a scene problem.
+pub const DEFAULT_MAX_OVERLAP_RATIO: f64 = 0.3;
+/// Default `guards.max_energy_residual`: the energy balance of a sound run closes to a few
+/// percent (first order in dt, docs/accuracy.md); 50 % more energy than the scale is a blow-up.
+pub const DEFAULT_MAX_ENERGY_RESIDUAL: f64 = 0.5;
 
 /// `[scene]`
 #[derive(Debug, Clone, Deserialize)]

@@ -114,6 +114,15 @@ pub fn validate(scene: &Scene) -> Vec<Violation> {
         c.positive("simulation.expected_impact_speed_m_s", speed);
     }
 
+    if let Some(guards) = &scene.guards {
+        if let Some(ratio) = guards.max_overlap_ratio {
+            c.positive("guards.max_overlap_ratio", ratio);
+        }
+        if let Some(residual) = guards.max_energy_residual {
+            c.positive("guards.max_energy_residual", residual);
+        }
+    }
+
     if scene.materials.is_empty() {
         c.fail(
             "materials",
