@@ -272,8 +272,11 @@ pub fn report(sim: &Simulation) -> CheckReport {
             );
         }
     }
-    // Half the limit keeps the amplification well inside the unit disk (M.70).
-    recommended = recommended.min(0.5 * stability_limit.0);
+    // The stiffest contact resolved like any other: for ξ = 0 the limit is 2/ω and the period
+    // 2π/ω = π × limit, so π × limit / 50 gives 50 steps per period; with damping the limit
+    // shrinks with the damper's time scale 1/(2ξω) and so does this (M.70).
+    recommended =
+        recommended.min(std::f64::consts::PI * stability_limit.0 / RECOMMENDED_STEPS_PER_CONTACT);
     let smallest_radius = particles
         .radius
         .iter()
