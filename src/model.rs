@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use glam::{DVec2, DVec3};
 
-use crate::contact::{BondParams, NormalParams, bond, hertz};
+use crate::contact::{BondParams, FrictionParams, NormalParams, bond, hertz, tangential};
 use crate::laser::{self, Laser};
 use crate::output::frame::{Needs, OptionalField};
 use crate::particles::{ParticleInit, Particles};
@@ -127,6 +127,64 @@ impl OutputSettings {
     }
 }
 
+/// Tangential and rolling parameters (M.56–M.61), dense tables like the normal ones; present when
+/// the scene gives `contact.friction_coefficient` or `contact.rolling_friction_coefficient`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Friction {
+    materials: usize,
+    /// `[a * n + b]`: material pair (a, b); symmetric.
+    pair: Vec<FrictionParams>,
+    /// `[w * n + a]`: particle (material a) against wall w.
+    wall: Vec<FrictionParams>,
+}
+
+impl Friction {
+    /// Parameters of two particle materials.
+    #[must_use]
+    #[inline]
+    pub fn pair(&self, a: u16, b: u16) -> &FrictionParams {
+        &self.pair[usize::from(a) * self.materials + usize::from(b)]
+    }
+
+    /// Parameters of a particle material against wall `wall`.
+    #[must_use]
+    #[inline]
+    pub fn wall(&self, wall: usize, material: u16) -> &FrictionParams {
+        &self.wall[wall * self.materials + usize::from(material)]
+    }
+
+    fn build(scene: &Scene, materials: &[Material], walls: &[Wall]) -> Option<Self> {
+        if !scene.contact.has_rotation() {
+            return None;
+        }
+        let params = |a: &Material, b: &Material| FrictionParams {
+            effective_shear_modulus: tangential::effective_shear_modulus(
+                a.youngs_modulus,
+                a.poisson_ratio,
+                b.youngs_modulus,
+                b.poisson_ratio,
+            ),
+            sliding: scene.contact.friction_coefficient.unwrap_or(0.0),
+            rolling: scene.contact.rolling_friction_coefficient.unwrap_or(0.0),
+        };
+        let pair = materials
+            .iter()
+            .flat_map(|a| materials.iter().map(move |b| (a, b)))
+            .map(|(a, b)| params(a, b))
+            .collect();
+        let wall = walls
+            .iter()
+            .flat_map(|w| materials.iter().map(move |a| (w, a)))
+            .map(|(w, a)| params(a, &materials[usize::from(w.material)]))
+            .collect();
+        Some(Self {
+            materials: materials.len(),
+            pair,
+            wall,
+        })
+    }
+}
+
 /// Resolved, immutable run parameters.
 #[derive(Debug, Clone)]
 pub struct Model {
@@ -154,6 +212,9 @@ pub struct Model {
     pub thermal: Option<ThermalModel>,
     /// The laser, if the scene has `[laser]`.
     pub laser: Option<Laser>,
+    /// Tangential and rolling parameters, if the scene has friction or rolling resistance
+    /// (then the particles rotate).
+    pub friction: Option<Friction>,
     /// `[a * n + b]`: normal-law parameters of material pair (a, b); symmetric.
     pair_params: Vec<NormalParams>,
     /// `[w * n + a]`: particle (material a) against wall w; never bonded.
@@ -235,7 +296,7 @@ impl Model {
                 });
                 pair_params.push(NormalParams {
                     effective_modulus,
-                    damping_ratio: scene.contact.damping_ratio,
+                    damping_ratio: scene.contact.resolved_damping_ratio(),
                     bond,
                 });
             }
@@ -255,11 +316,13 @@ impl Model {
             for a in &materials {
                 wall_params.push(NormalParams {
                     effective_modulus: e_star(a, &materials[usize::from(w.material)]),
-                    damping_ratio: scene.contact.damping_ratio,
+                    damping_ratio: scene.contact.resolved_damping_ratio(),
                     bond: None,
                 });
             }
         }
+
+        let friction = Friction::build(scene, &materials, &walls);
 
         let sim = &scene.simulation;
         // Round-off in duration/dt (5e-3/5e-7 = 10000.000000000002) must not add a step.
@@ -290,6 +353,7 @@ impl Model {
             laser: scene.laser.as_ref().map(|l| laser(l, smallest_radius)),
             expected_impact_speed: sim.expected_impact_speed_m_s,
             output: OutputSettings::resolve(scene, steps),
+            friction,
             pair_params,
             wall_params,
         };

@@ -14,12 +14,12 @@
 //! 7. Second half kick (M.32).
 
 use crate::contact::{BondState, hertz};
-use crate::forces::{self, PairResult};
+use crate::forces::{self, PairResult, PairTangential};
 use crate::integrate;
 use crate::laser;
 use crate::model::Model;
 use crate::neighbor::NeighborList;
-use crate::particles::Particles;
+use crate::particles::{Particles, Rotation};
 use crate::thermal::{self, ThermalState};
 
 /// A running simulation.
@@ -36,6 +36,12 @@ pub struct Simulation {
     /// allocated and no thermal pass runs).
     pub thermal: Option<ThermalState>,
     laser_snapshot: laser::Snapshot,
+    /// Angular velocities, torques and wall contact histories, if the scene has friction or
+    /// rolling resistance (otherwise nothing is allocated and no rotation pass runs).
+    pub rotation: Option<Rotation>,
+    /// Per pair slot (indexed like the neighbour list's pairs), with rotation only: the tangential
+    /// history, carried over rebuilds like `bond_states`, and the pair's torques.
+    tangential: Vec<PairTangential>,
     /// Steps taken.
     pub step: u64,
     /// Simulated time [s].
@@ -141,6 +147,10 @@ impl Simulation {
             .thermal
             .as_ref()
             .map(|t| ThermalState::new(t, &particles));
+        let rotation = model
+            .friction
+            .as_ref()
+            .map(|_| Rotation::new(particles.len(), model.walls.len()));
         let mut sim = Self {
             model,
             particles,
@@ -149,11 +159,14 @@ impl Simulation {
             pair_results: Vec::new(),
             thermal,
             laser_snapshot: laser::Snapshot::default(),
+            rotation,
+            tangential: Vec::new(),
             step: 0,
             time: 0.0,
         };
         sim.rebuild_neighbors();
         sim.compute_forces();
+        sim.clear_tangential_history();
         // The t = 0 evaluation did no work over time; the energy the run starts with already
         // counts any bond it formed.
         sim.particles.dissipated.fill(0.0);
@@ -245,6 +258,8 @@ impl Simulation {
             pair_results: Vec::new(),
             thermal,
             laser_snapshot: state.laser.unwrap_or_default(),
+            rotation: None,
+            tangential: Vec::new(),
             step: state.step,
             time: 0.0,
         };
@@ -313,8 +328,18 @@ impl Simulation {
 
     fn rebuild_neighbors(&mut self) {
         let p = &self.particles;
-        self.neighbors
-            .rebuild(&p.position, &p.radius, &p.id, &mut self.bond_states);
+        if self.rotation.is_some() {
+            self.neighbors.rebuild_with_history(
+                &p.position,
+                &p.radius,
+                &p.id,
+                &mut self.bond_states,
+                Some(&mut self.tangential),
+            );
+        } else {
+            self.neighbors
+                .rebuild(&p.position, &p.radius, &p.id, &mut self.bond_states);
+        }
         self.pair_results
             .resize(self.neighbors.pairs.len(), PairResult::default());
     }
@@ -340,6 +365,10 @@ impl Simulation {
             &mut self.bond_states,
             &mut self.pair_results,
             heat,
+            self.rotation.as_ref().map(|r| forces::PairFriction {
+                angular_velocity: &r.angular_velocity,
+                slots: &mut self.tangential,
+            }),
         );
         let heat = match (&self.model.thermal, &mut self.thermal) {
             (Some(model), Some(state)) => {
@@ -374,7 +403,31 @@ impl Simulation {
             &self.pair_results,
             heat,
         );
+        if let Some(rotation) = &mut self.rotation {
+            forces::torque_gather(
+                &self.model,
+                &mut self.particles,
+                &self.neighbors,
+                &self.tangential,
+                rotation,
+            );
+        }
         thermal.then_some(worst)
+    }
+
+    /// The set-up evaluation at t = 0 computed the tangential forces with a history advanced by
+    /// v_t dt; a run starts with no tangential displacement, so the history is cleared (the
+    /// energy it held was not counted either: `dissipated` is reset too).
+    fn clear_tangential_history(&mut self) {
+        if let Some(rotation) = &mut self.rotation {
+            for slot in &mut self.tangential {
+                slot.history = glam::DVec3::ZERO;
+                slot.spring_energy = 0.0;
+            }
+            rotation
+                .wall_contacts
+                .fill(crate::particles::WallTangential::default());
+        }
     }
 
     fn update_conductances(&mut self) {
@@ -438,6 +491,9 @@ impl Simulation {
     pub fn step(&mut self) {
         let dt = self.model.dt;
         integrate::kick_drift(&mut self.particles, dt);
+        if let Some(rotation) = &mut self.rotation {
+            integrate::kick_rotation(&self.particles, rotation, dt);
+        }
         if self.neighbors.needs_rebuild(&self.particles.position) {
             self.rebuild_neighbors();
         }
@@ -445,6 +501,9 @@ impl Simulation {
         let first_flows = self.compute_forces();
         self.advance_temperatures(first_flows);
         integrate::kick(&mut self.particles, dt);
+        if let Some(rotation) = &mut self.rotation {
+            integrate::kick_rotation(&self.particles, rotation, dt);
+        }
         self.step += 1;
         #[allow(clippy::cast_precision_loss)]
         let time = self.step as f64 * dt; // no accumulated round-off over millions of steps
@@ -520,6 +579,12 @@ impl Simulation {
                 }
             }
         }
+        if let Some(rotation) = &self.rotation {
+            // (M.63): rotation is kinetic energy, the tangential springs store elastic energy.
+            d.kinetic_energy += rotation.kinetic_energy(p);
+            d.elastic_energy += self.tangential.iter().map(|t| t.spring_energy).sum::<f64>()
+                + rotation.wall_spring_energy();
+        }
         d.thermal = self.thermal.as_ref().map(|t| ThermalDiagnostics {
             enthalpy: t.total_enthalpy(),
             laser_energy: t.total_laser_energy(),
@@ -562,8 +627,15 @@ impl Simulation {
                 .position(|x| !x.is_finite())
                 .map(|k| (k, "temperature"))
         });
+        let rotation = self.rotation.as_ref().and_then(|r| {
+            r.angular_velocity
+                .iter()
+                .position(|w| !w.is_finite())
+                .map(|k| (k, "angular_velocity"))
+        });
         integrate::first_non_finite(&self.particles)
             .or(thermal)
+            .or(rotation)
             .map(|(k, field)| (self.particles.id[k], field))
     }
 }
