@@ -64,7 +64,8 @@ mod tests {
     fn a_slow_relative_rotation_is_stopped_not_reversed() {
         let omega = DVec3::new(1e-3, 0.0, 0.0);
         let (inverse_inertia_sum, dt) = (1e3, 1e-4);
-        let m = rolling_torque(0.5, 1e-3, 10.0, omega, inverse_inertia_sum, dt);
+        // μ_r r* F = 5e-2 N·m exceeds the stopping torque |ω| / (dt Σ 1/I) = 1e-2 N·m.
+        let m = rolling_torque(0.5, 1e-3, 100.0, omega, inverse_inertia_sum, dt);
         // One step of this torque changes ω_rel by exactly −ω_rel.
         let change = m * dt * inverse_inertia_sum;
         assert!((change + omega).length() < 1e-18);
