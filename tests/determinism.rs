@@ -50,3 +50,51 @@ fn laser_track_is_bitwise_identical_on_one_and_two_threads() {
         "the test must exercise melting and bonding"
     );
 }
+
+/// `scenes/column.toml` with sliding and rolling friction, for the first 15 ms: 2000 particles
+/// (so the passes run in parallel), the bottom layers on the floor and on each other (~330
+/// contacts, ~90 wall contacts).
+fn run_with_friction(threads: usize) -> Simulation {
+    let text = common::scene_text("column.toml")
+        .replace("duration_s = 0.1", "duration_s = 0.015")
+        .replace(
+            "damping_ratio = 0.3 ",
+            "friction_coefficient = 0.5\nrolling_friction_coefficient = 0.05\ndamping_ratio = 0.3 ",
+        );
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        let mut sim = common::simulation(&text);
+        for _ in 0..sim.model.steps {
+            sim.step();
+        }
+        sim
+    })
+}
+
+#[test]
+fn friction_and_rotation_are_bitwise_identical_on_one_and_two_threads() {
+    let (one, two) = (run_with_friction(1), run_with_friction(2));
+    let bits = |s: &Simulation| -> Vec<u64> {
+        let p = &s.particles;
+        let r = s.rotation.as_ref().expect("friction allocates rotation");
+        p.position
+            .iter()
+            .chain(&p.velocity)
+            .chain(&r.angular_velocity)
+            .chain(&r.torque)
+            .flat_map(|v| v.to_array())
+            .map(f64::to_bits)
+            .collect()
+    };
+    assert_eq!(bits(&one), bits(&two));
+    let d = one.diagnostics();
+    assert_eq!(d, two.diagnostics());
+    eprintln!("contacts {}, wall contacts {}", d.contacts, d.wall_contacts);
+    assert!(
+        d.contacts > 200 && d.wall_contacts > 50,
+        "the test must exercise particle and wall friction"
+    );
+}
