@@ -105,6 +105,7 @@ impl OutputSettings {
             Needs::Nothing => true,
             Needs::Bond => scene.bond.is_some(),
             Needs::Thermal => scene.thermal.is_some(),
+            Needs::Rotation => scene.contact.has_rotation(),
         };
         let fields = match out.and_then(|o| o.fields.as_ref()) {
             Some(names) => OptionalField::ALL

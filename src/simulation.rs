@@ -63,6 +63,27 @@ pub struct RestartState {
     pub thermal: Option<ThermalRestart>,
     /// The laser's last ray cast, for scenes with `[laser]`.
     pub laser: Option<laser::Snapshot>,
+    /// Rotation and tangential histories, for scenes with friction or rolling resistance.
+    pub rotation: Option<RotationRestart>,
+}
+
+/// Rotational part of [`RestartState`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RotationRestart {
+    /// Angular velocities [rad/s].
+    pub angular_velocity: Vec<glam::DVec3>,
+    /// Torques of the last step [N·m].
+    pub torque: Vec<glam::DVec3>,
+    /// Wall histories [m], `[k * max(walls, 1) + w]`.
+    pub wall_history: Vec<glam::DVec3>,
+    /// Wall spring energies [J], indexed like `wall_history`.
+    pub wall_spring_energy: Vec<f64>,
+    /// Pairs with a tangential history, as (id_lo, id_hi).
+    pub pair_ids: Vec<(u64, u64)>,
+    /// Their histories [m] (first → second particle of the key, world frame).
+    pub pair_history: Vec<glam::DVec3>,
+    /// Their spring energies [J].
+    pub pair_spring_energy: Vec<f64>,
 }
 
 /// Thermal part of [`RestartState`].
@@ -195,6 +216,74 @@ impl Simulation {
                 .laser
                 .as_ref()
                 .map(|_| self.laser_snapshot.clone()),
+            rotation: self.rotation.as_ref().map(|r| self.rotation_restart(r)),
+        }
+    }
+
+    fn rotation_restart(&self, rotation: &Rotation) -> RotationRestart {
+        let held: Vec<usize> = (0..self.tangential.len())
+            .filter(|&p| self.tangential[p] != PairTangential::default())
+            .collect();
+        RotationRestart {
+            angular_velocity: rotation.angular_velocity.clone(),
+            torque: rotation.torque.clone(),
+            wall_history: rotation.wall_contacts.iter().map(|c| c.history).collect(),
+            wall_spring_energy: rotation
+                .wall_contacts
+                .iter()
+                .map(|c| c.spring_energy)
+                .collect(),
+            pair_ids: held.iter().map(|&p| self.neighbors.key(p)).collect(),
+            pair_history: held.iter().map(|&p| self.tangential[p].history).collect(),
+            pair_spring_energy: held
+                .iter()
+                .map(|&p| self.tangential[p].spring_energy)
+                .collect(),
+        }
+    }
+
+    /// Rotation state from restart data (`None` without friction in the scene).
+    fn resumed_rotation(
+        model: &Model,
+        n: usize,
+        saved: Option<&RotationRestart>,
+    ) -> Result<Option<Rotation>, String> {
+        match (&model.friction, saved) {
+            (None, None) => Ok(None),
+            (Some(_), None) => Err(
+                "the scene has friction or rolling resistance but the restart data has no angular velocities"
+                    .into(),
+            ),
+            (None, Some(_)) => Err(
+                "the restart data has angular velocities but the scene has no friction or rolling resistance"
+                    .into(),
+            ),
+            (Some(_), Some(saved)) => {
+                let mut rotation = Rotation::new(n, model.walls.len());
+                if saved.angular_velocity.len() != n
+                    || saved.torque.len() != n
+                    || saved.wall_history.len() != rotation.wall_contacts.len()
+                    || saved.wall_spring_energy.len() != rotation.wall_contacts.len()
+                {
+                    return Err(format!(
+                        "restart data has {} angular velocities and {} wall histories for {n} particles and {} walls",
+                        saved.angular_velocity.len(),
+                        saved.wall_history.len(),
+                        model.walls.len()
+                    ));
+                }
+                rotation.angular_velocity.clone_from(&saved.angular_velocity);
+                rotation.torque.clone_from(&saved.torque);
+                for (slot, (history, energy)) in rotation
+                    .wall_contacts
+                    .iter_mut()
+                    .zip(saved.wall_history.iter().zip(&saved.wall_spring_energy))
+                {
+                    slot.history = *history;
+                    slot.spring_energy = *energy;
+                }
+                Ok(Some(rotation))
+            }
         }
     }
 
@@ -250,6 +339,7 @@ impl Simulation {
                 );
             }
         };
+        let rotation = Self::resumed_rotation(&model, n, state.rotation.as_ref())?;
         let mut sim = Self {
             neighbors: NeighborList::new(model.skin),
             model,
@@ -258,7 +348,7 @@ impl Simulation {
             pair_results: Vec::new(),
             thermal,
             laser_snapshot: state.laser.unwrap_or_default(),
-            rotation: None,
+            rotation,
             tangential: Vec::new(),
             step: state.step,
             time: 0.0,
@@ -275,6 +365,26 @@ impl Simulation {
         for p in 0..sim.neighbors.pairs.len() {
             if bonded.contains(&sim.neighbors.key(p)) {
                 sim.bond_states[p] = BondState::Bonded;
+            }
+        }
+        if let Some(saved) = &state.rotation {
+            let held: std::collections::HashMap<(u64, u64), (glam::DVec3, f64)> = saved
+                .pair_ids
+                .iter()
+                .copied()
+                .zip(
+                    saved
+                        .pair_history
+                        .iter()
+                        .copied()
+                        .zip(saved.pair_spring_energy.iter().copied()),
+                )
+                .collect();
+            for p in 0..sim.neighbors.pairs.len() {
+                if let Some(&(history, spring_energy)) = held.get(&sim.neighbors.key(p)) {
+                    sim.tangential[p].history = history;
+                    sim.tangential[p].spring_energy = spring_energy;
+                }
             }
         }
         // Overlaps for the diagnostics of the first row; the next step recomputes everything.

@@ -618,6 +618,11 @@ fn validate_output(c: &mut Checker, scene: &Scene, out: &super::OutputConfig) {
                 Needs::Thermal if scene.thermal.is_none() => {
                     c.fail(key, format!("\"{name}\""), "needs a [thermal] section")
                 }
+                Needs::Rotation if !scene.contact.has_rotation() => c.fail(
+                    key,
+                    format!("\"{name}\""),
+                    "needs contact.friction_coefficient or contact.rolling_friction_coefficient",
+                ),
                 _ => {}
             },
         }
