@@ -376,3 +376,21 @@ material = "paper"
         x0 = -r
     )
 }
+
+#[test]
+fn check_reports_the_mindlin_stiffness_ratio_and_the_shorter_tangential_time() {
+    let sim = sliding_sphere(0.5, 0.3, 0.0, 1e-3);
+    let report = am_sim::check::report(&sim);
+    let friction = report.friction.expect("friction scene");
+    // Equal materials: k_t/k_n = 4 G*/E* = 2 (1 − ν)/(2 − ν).
+    let ratio = 2.0 * (1.0 - POISSON) / (2.0 - POISSON);
+    assert!((friction.stiffness_ratio.0 / ratio - 1.0).abs() < 1e-12);
+    assert!((friction.stiffness_ratio.1 / ratio - 1.0).abs() < 1e-12);
+    // Tangential mass 2 m*/7 (rotation included): time factor √(2/7 / ratio) = 0.589.
+    assert!((friction.time_factor - (2.0 / 7.0 / ratio).sqrt()).abs() < 1e-12);
+    assert!(friction.time_factor < 1.0);
+    assert!(report.to_string().contains("k_t/k_n = 0.8235"));
+    let no_friction =
+        am_sim::check::report(&common::two_spheres(2000.0, 1.0, 0.1, None, 1e-7, 1e-5));
+    assert!(no_friction.friction.is_none());
+}
