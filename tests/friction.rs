@@ -461,3 +461,82 @@ fn rolling_resistance_holds_a_sphere_below_tan_theta_mu_r() {
     );
     eprintln!("held at {held} m/s; above: {rolls} vs {expected} m/s");
 }
+
+/// Two bonded spheres of example 5.1 at their equilibrium overlap (normal force ≈ 0), sheared by
+/// opposite velocities ±`speed`/2 along y, with or without a bond criterion.
+fn sheared_pair(criterion: &str, speed: f64) -> Simulation {
+    let half_distance = RADIUS - 2.5e-5; // δ = δ_eq = 50 µm
+    let half_v = speed / 2.0;
+    common::simulation(&format!(
+        r#"
+[scene]
+version = 1
+[simulation]
+dt_s = 1e-7
+duration_s = 2e-3
+skin_m = 1e-4
+[materials.paper]
+density_kg_m3 = 2000
+youngs_modulus_pa = 1e9
+poisson_ratio = 0.0
+[contact]
+model = "hertz"
+restitution = 0.5
+friction_coefficient = 0.1
+[bond]
+adhesion_exponent = 1.0
+equilibrium_overlap_m = 5e-5
+damping_ratio = 0.3
+criterion = "{criterion}"
+[[particles]]
+position_m = [-{half_distance:e}, 0.0, 0.0]
+velocity_m_s = [0.0, {half_v:e}, 0.0]
+radius_m = {RADIUS:e}
+material = "paper"
+[[particles]]
+position_m = [{half_distance:e}, 0.0, 0.0]
+velocity_m_s = [0.0, -{half_v:e}, 0.0]
+radius_m = {RADIUS:e}
+material = "paper"
+"#
+    ))
+}
+
+/// Tangential slip speed at the contact of the first two particles (M.60).
+fn pair_slip(sim: &Simulation) -> f64 {
+    let p = &sim.particles;
+    let omega = &sim.rotation.as_ref().unwrap().angular_velocity;
+    let separation = p.position[1] - p.position[0];
+    let n = separation.normalize();
+    let overlap = 2.0 * RADIUS - separation.length();
+    let arm = RADIUS - 0.5 * overlap;
+    let v = p.velocity[0] - p.velocity[1] + (arm * omega[0] + arm * omega[1]).cross(n);
+    (v - v.dot(n) * n).length()
+}
+
+#[test]
+fn a_bonded_neck_sticks_beyond_the_coulomb_limit() {
+    let (speed, mu) = (0.2, 0.1);
+    let mut sim = sheared_pair("always", speed);
+    let mut normal_impulse = 0.0;
+    for _ in 0..sim.model.steps {
+        sim.step();
+        let (_, _, _, normal_force) = sim.bonded_pairs()[0];
+        normal_impulse += normal_force.abs() * sim.model.dt;
+    }
+    assert_eq!(sim.bonds().len(), 1, "the shear must not break the bond");
+    // No Coulomb limit: the spring and its damper bring the slip to rest and the pair spins.
+    let spin = sim.rotation.as_ref().unwrap().angular_velocity[0].z;
+    let slip = pair_slip(&sim);
+    // The tangential impulse that stopped particle 0's shear motion, against what a contact with
+    // the same normal force could have transmitted, μ ∫|F_n| dt.
+    let tangential_impulse = sim.particles.mass[0] * (0.5 * speed - sim.particles.velocity[0].y);
+    eprintln!(
+        "bonded: slip {slip} m/s, spin {spin} rad/s, tangential impulse {tangential_impulse:e}, μ ∫|F_n| {:e}",
+        mu * normal_impulse
+    );
+    assert!(slip < 1e-3 * speed, "{slip}");
+    assert!(spin.abs() > 10.0);
+    // Measured 30×: the normal force of a bond at δ_eq is nearly zero.
+    assert!(tangential_impulse > 10.0 * mu * normal_impulse);
+}
