@@ -5,6 +5,9 @@
 //! 2. **Gather pass** (parallel over particles): each particle sums its incident pair results in
 //!    the fixed CSR order of the neighbour list, then adds gravity and wall contacts, and writes
 //!    only its own force.
+//! 3. **Torque pass** (parallel over particles, only with friction or rolling resistance): each
+//!    particle sums the torques of its incident pair slots in the same CSR order and adds its
+//!    walls' tangential forces and torques, writing only its own slots ([`torque_gather`]).
 //!
 //! No atomics, no locks, no thread-local buffers: each pair is computed once, its history lives in
 //! one place, and the sums are bitwise identical for any thread count.
