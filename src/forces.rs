@@ -1,4 +1,4 @@
-//! The two parallel force passes. This is the only place that loops over pairs.
+//! The parallel force passes. This is the only place that loops over pairs.
 //!
 //! 1. **Pair pass** (parallel over pairs): each pair reads positions and velocities, calls the pure
 //!    contact law, and writes only its own result slot and its own bond state.
