@@ -84,6 +84,70 @@ pub struct CheckReport {
     pub warnings: Vec<String>,
     /// Thermal time scales, for scenes with `[thermal]`.
     pub thermal: Option<ThermalCheck>,
+    /// Tangential time scale, for scenes with friction or rolling resistance.
+    pub friction: Option<FrictionCheck>,
+}
+
+/// Tangential part of the report (M.64).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrictionCheck {
+    /// Smallest and largest `k_t/k_n = 4 G*/E*` over material pairs and walls.
+    pub stiffness_ratio: (f64, f64),
+    /// Sticking tangential oscillation time relative to the Hertz contact time,
+    /// `√(2/7 · k_n/k_t)` at the largest stiffness ratio.
+    pub time_factor: f64,
+    /// Shortest Hertz contact time times `time_factor` [s].
+    pub tangential_time: f64,
+}
+
+/// k_t/k_n and the tangential time scale (M.64); lowers `recommended` and warns when dt resolves
+/// the tangential oscillation too coarsely.
+fn friction_check(
+    model: &Model,
+    pairs: &[PairRow],
+    recommended: &mut f64,
+    warnings: &mut Vec<String>,
+) -> Option<FrictionCheck> {
+    let friction = model.friction.as_ref()?;
+    let n = u16::try_from(model.materials.len()).unwrap_or(u16::MAX);
+    let mut ratios = Vec::new();
+    for a in 0..n {
+        for b in 0..n {
+            ratios.push(
+                4.0 * friction.pair(a, b).effective_shear_modulus
+                    / model.pair_params(a, b).effective_modulus,
+            );
+        }
+        for w in 0..model.walls.len() {
+            ratios.push(
+                4.0 * friction.wall(w, a).effective_shear_modulus
+                    / model.wall_params(w, a).effective_modulus,
+            );
+        }
+    }
+    let lo = ratios.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = ratios.iter().copied().fold(0.0, f64::max);
+    let time_factor = (2.0 / 7.0 / hi).sqrt();
+    let shortest = pairs
+        .iter()
+        .map(|row| row.contact_time)
+        .fold(f64::INFINITY, f64::min);
+    let tangential_time = shortest * time_factor;
+    if tangential_time.is_finite() {
+        *recommended = recommended.min(tangential_time / RECOMMENDED_STEPS_PER_CONTACT);
+        if model.dt > tangential_time / MIN_STEPS_PER_CONTACT {
+            warnings.push(format!(
+                "dt = {:.3e} s resolves the tangential (sticking) time scale {tangential_time:.3e} s with only {:.1} steps (want ≥ {MIN_STEPS_PER_CONTACT})",
+                model.dt,
+                tangential_time / model.dt
+            ));
+        }
+    }
+    Some(FrictionCheck {
+        stiffness_ratio: (lo, hi),
+        time_factor,
+        tangential_time,
+    })
 }
 
 /// Smallest and largest radius of each material present (None for absent materials).
@@ -260,6 +324,18 @@ pub fn report(sim: &Simulation) -> CheckReport {
             }
         }
     }
+    // With friction a sticking contact also oscillates tangentially, against the reduced mass
+    // 2/7 m* (rotation included) and k_t = (4G*/E*) k_n: ω_t = ω_n / time_factor (M.64), so
+    // the limit shrinks by that factor where it is below 1 (0.59 for ν = 0.3).
+    let friction = friction_check(model, &pairs, &mut recommended, &mut warnings);
+    if let Some(f) = &friction {
+        if f.time_factor < 1.0 {
+            stability_limit.0 *= f.time_factor;
+            stability_limit
+                .1
+                .push_str(&format!(", sticking tangentially (× {:.3})", f.time_factor));
+        }
+    }
     if let Some(now) = sim.stability_limit_now() {
         if now.dt_max < stability_limit.0 {
             let pair = match now.ids {
@@ -310,6 +386,7 @@ pub fn report(sim: &Simulation) -> CheckReport {
     }
     CheckReport {
         thermal,
+        friction,
         dt,
         steps: model.steps,
         particles: particles.len(),
@@ -479,6 +556,17 @@ impl fmt::Display for CheckReport {
             if let Some((cell, _)) = t.raster {
                 writeln!(f, "laser ray-casting cell: {cell:.3e} m")?;
             }
+        }
+        if let Some(t) = &self.friction {
+            writeln!(
+                f,
+                "tangential contact: k_t/k_n = {:.4}–{:.4}; sticking oscillation time = {:.4} × Hertz contact time = {:.4e} s ({:.1} steps)",
+                t.stiffness_ratio.0,
+                t.stiffness_ratio.1,
+                t.time_factor,
+                t.tangential_time,
+                t.tangential_time / self.dt
+            )?;
         }
         if let Some(reason) = self.instability() {
             writeln!(f, "error: {reason}")?;

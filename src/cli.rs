@@ -388,7 +388,7 @@ fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
     // The run's own error indicators, beside its wall time (docs/stability.md, docs/accuracy.md).
     let lost = d.dissipated_energy - initial.dissipated_energy;
     say!(
-        "  energy: mechanical {:.6e} J → {:.6e} J, lost to damping and bonding {lost:.6e} J",
+        "  energy: mechanical {:.6e} J → {:.6e} J, lost to damping, friction and bonding {lost:.6e} J",
         initial.mechanical_energy(),
         d.mechanical_energy()
     );

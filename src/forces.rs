@@ -1,10 +1,13 @@
-//! The two parallel force passes. This is the only place that loops over pairs.
+//! The parallel force passes. This is the only place that loops over pairs.
 //!
 //! 1. **Pair pass** (parallel over pairs): each pair reads positions and velocities, calls the pure
 //!    contact law, and writes only its own result slot and its own bond state.
 //! 2. **Gather pass** (parallel over particles): each particle sums its incident pair results in
 //!    the fixed CSR order of the neighbour list, then adds gravity and wall contacts, and writes
 //!    only its own force.
+//! 3. **Torque pass** (parallel over particles, only with friction or rolling resistance): each
+//!    particle sums the torques of its incident pair slots in the same CSR order and adds its
+//!    walls' tangential forces and torques, writing only its own slots ([`torque_gather`]).
 //!
 //! No atomics, no locks, no thread-local buffers: each pair is computed once, its history lives in
 //! one place, and the sums are bitwise identical for any thread count.
@@ -12,10 +15,10 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::contact::{self, BondState, PairKinematics, hertz};
+use crate::contact::{self, BondState, FrictionParams, PairKinematics, hertz, rolling, tangential};
 use crate::model::Model;
 use crate::neighbor::NeighborList;
-use crate::particles::Particles;
+use crate::particles::{Particles, Rotation, WallTangential};
 use crate::thermal::{self, ThermalModel};
 
 /// What a pair contributes, stored per pair slot between the two passes.
@@ -58,8 +61,121 @@ pub struct PairHeat<'a> {
     pub conductance: &'a mut [f64],
 }
 
+/// Per pair slot, for scenes with friction or rolling resistance: the tangential history
+/// (carried over neighbour-list rebuilds by id key) and the torques of this step.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PairTangential {
+    /// Tangential displacement ξ [m] of the first particle relative to the second, world frame,
+    /// turned into the current tangent plane at each use (M.58).
+    pub history: DVec3,
+    /// Spring energy `½ k_t |ξ|²` at the last evaluation [J] (M.63).
+    pub spring_energy: f64,
+    /// Torque on the first particle [N·m] (M.60, M.61).
+    pub torque_on_first: DVec3,
+    /// Torque on the second particle [N·m].
+    pub torque_on_second: DVec3,
+}
+
+/// What the pair pass needs and fills for scenes with friction or rolling resistance.
+#[derive(Debug)]
+pub struct PairFriction<'a> {
+    /// Angular velocities [rad/s] (at the half step, like the velocities).
+    pub angular_velocity: &'a [DVec3],
+    /// Per pair slot: history in, history and torques out.
+    pub slots: &'a mut [PairTangential],
+}
+
+/// One contact as the tangential and rolling laws see it (a pair, or a particle and a wall).
+#[derive(Debug, Clone, Copy)]
+struct TangentialContact {
+    /// Unit normal from the first body to the second.
+    normal: DVec3,
+    /// `v_first − v_second` at the contact point (M.60) [m/s].
+    contact_velocity: DVec3,
+    /// `ω_first − ω_second` [rad/s].
+    relative_angular_velocity: DVec3,
+    /// `1/I_first + 1/I_second` [1/(kg·m²)].
+    inverse_inertia_sum: f64,
+    /// Total and elastic normal force [N], positive when repulsive.
+    normal_force: f64,
+    elastic_normal_force: f64,
+    /// A bonded neck sticks: no Coulomb limit (docs/model.md section 27.5).
+    bonded: bool,
+}
+
+/// What one contact's tangential and rolling laws give over one step.
+#[derive(Debug, Clone, Copy)]
+struct TangentialStep {
+    /// Tangential force on the first body [N].
+    force: DVec3,
+    /// Rolling torque on the first body [N·m] (the second gets the opposite).
+    rolling_torque: DVec3,
+    history: DVec3,
+    spring_energy: f64,
+    /// Energy lost over the step [J] (M.63).
+    lost: f64,
+}
+
+/// Tangential spring (M.57–M.59) and rolling resistance (M.61) of one contact over one step,
+/// and the energy they took (M.63): `−F_t·v_t dt − ΔU_t + (−M_r·ω_rel) dt`.
+fn tangential_step(
+    params: &FrictionParams,
+    damping_ratio: f64,
+    dt: f64,
+    kinematics: &PairKinematics,
+    contact: &TangentialContact,
+    history: DVec3,
+    spring_energy: f64,
+) -> TangentialStep {
+    let n = contact.normal;
+    let v = contact.contact_velocity;
+    let tangential_velocity = v - v.dot(n) * n;
+    let (mut force, mut new_history, mut new_energy) = (DVec3::ZERO, DVec3::ZERO, 0.0);
+    if params.sliding > 0.0 || contact.bonded {
+        let stiffness = tangential::stiffness(
+            params.effective_shear_modulus,
+            kinematics.effective_radius,
+            kinematics.overlap,
+        );
+        let damping =
+            tangential::damping_coefficient(damping_ratio, kinematics.effective_mass, stiffness);
+        // LIGGGHTS caps with the total normal force (M.59, section 27.3).
+        let limit = (!contact.bonded).then(|| params.sliding * contact.normal_force.abs());
+        let out = tangential::tangential_force(
+            tangential::rotate_history(history, n),
+            tangential_velocity,
+            dt,
+            stiffness,
+            damping,
+            limit,
+        );
+        force = out.force;
+        new_history = out.history;
+        new_energy = tangential::spring_energy(stiffness, new_history);
+    }
+    let rolling_torque = rolling::rolling_torque(
+        params.rolling,
+        kinematics.effective_radius,
+        contact.elastic_normal_force,
+        contact.relative_angular_velocity,
+        contact.inverse_inertia_sum,
+        dt,
+    );
+    let lost = -dt * force.dot(tangential_velocity)
+        - (new_energy - spring_energy)
+        - dt * rolling_torque.dot(contact.relative_angular_velocity);
+    TangentialStep {
+        force,
+        rolling_torque,
+        history: new_history,
+        spring_energy: new_energy,
+        lost,
+    }
+}
+
 /// Pair pass: fills `results` and updates `states` (both indexed like `list.pairs`); with
-/// `heat`, also each pair's contact conductance, while the pair's data is at hand.
+/// `heat`, also each pair's contact conductance, while the pair's data is at hand; with
+/// `friction`, the tangential force (added to the result) and the pair's torques.
 pub fn pair_pass(
     model: &Model,
     particles: &Particles,
@@ -67,24 +183,29 @@ pub fn pair_pass(
     states: &mut [BondState],
     results: &mut [PairResult],
     heat: Option<PairHeat<'_>>,
+    friction: Option<PairFriction<'_>>,
 ) {
     let melted = heat.as_ref().map(|h| h.melted);
     let thermal = heat.as_ref().map(|h| h.model);
+    let angular_velocity = friction.as_ref().map(|f| f.angular_velocity);
     let evaluate = |&[a, b]: &[u32; 2],
                     state: &mut BondState,
                     result: &mut PairResult,
-                    conductance: Option<&mut f64>| {
+                    conductance: Option<&mut f64>,
+                    slot: Option<&mut PairTangential>| {
         let (a, b) = (a as usize, b as usize);
         let (normal, overlap) = pair_geometry(particles, a, b);
         if overlap <= 0.0 {
             if let Some(h) = conductance {
                 *h = 0.0;
             }
+            // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is lost.
+            let released = slot.map_or(0.0, |t| std::mem::take(t).spring_energy);
             *state = BondState::Unbonded;
             *result = PairResult {
                 force_on_first: DVec3::ZERO,
                 overlap,
-                lost: 0.0,
+                lost: released,
             };
             return;
         }
@@ -124,13 +245,63 @@ pub fn pair_pass(
             }
         }
         *state = outcome.state;
+        let mut force_on_first = -outcome.force * normal;
+        if let (Some(slot), Some(omega), Some(tables)) =
+            (slot, angular_velocity, model.friction.as_ref())
+        {
+            // Lever arms to the middle of the overlap (M.60).
+            let arm_a = particles.radius[a] - 0.5 * overlap;
+            let arm_b = particles.radius[b] - 0.5 * overlap;
+            let v = particles.velocity[a] - particles.velocity[b];
+            let contact = TangentialContact {
+                normal,
+                contact_velocity: v + (arm_a * omega[a] + arm_b * omega[b]).cross(normal),
+                relative_angular_velocity: omega[a] - omega[b],
+                inverse_inertia_sum: 1.0
+                    / rolling::sphere_inertia(particles.mass[a], particles.radius[a])
+                    + 1.0 / rolling::sphere_inertia(particles.mass[b], particles.radius[b]),
+                normal_force: outcome.force,
+                elastic_normal_force: outcome.elastic,
+                bonded: outcome.state == BondState::Bonded,
+            };
+            let step = tangential_step(
+                tables.pair(particles.material[a], particles.material[b]),
+                params.damping_ratio,
+                model.dt,
+                &kinematics,
+                &contact,
+                slot.history,
+                slot.spring_energy,
+            );
+            force_on_first += step.force;
+            lost += step.lost;
+            let lever = normal.cross(step.force);
+            *slot = PairTangential {
+                history: step.history,
+                spring_energy: step.spring_energy,
+                torque_on_first: arm_a * lever + step.rolling_torque,
+                torque_on_second: arm_b * lever - step.rolling_torque,
+            };
+        }
         *result = PairResult {
-            force_on_first: -outcome.force * normal,
+            force_on_first,
             overlap,
             lost,
         };
     };
     let parallel = crate::worth_parallel(list.pairs.len());
+    if let Some(friction) = friction {
+        pair_pass_with_friction(
+            list,
+            states,
+            results,
+            heat,
+            friction.slots,
+            parallel,
+            evaluate,
+        );
+        return;
+    }
     match (heat, parallel) {
         (Some(heat), true) => {
             let slots = states
@@ -140,7 +311,7 @@ pub fn pair_pass(
             list.pairs
                 .par_iter()
                 .zip(slots)
-                .for_each(|(p, ((s, r), h))| evaluate(p, s, r, Some(h)));
+                .for_each(|(p, ((s, r), h))| evaluate(p, s, r, Some(h), None));
         }
         (Some(heat), false) => {
             let slots = states
@@ -150,23 +321,179 @@ pub fn pair_pass(
             list.pairs
                 .iter()
                 .zip(slots)
-                .for_each(|(p, ((s, r), h))| evaluate(p, s, r, Some(h)));
+                .for_each(|(p, ((s, r), h))| evaluate(p, s, r, Some(h), None));
         }
         (None, true) => {
             let slots = states.par_iter_mut().zip(results.par_iter_mut());
             list.pairs
                 .par_iter()
                 .zip(slots)
-                .for_each(|(p, (s, r))| evaluate(p, s, r, None));
+                .for_each(|(p, (s, r))| evaluate(p, s, r, None, None));
         }
         (None, false) => {
             let slots = states.iter_mut().zip(results.iter_mut());
             list.pairs
                 .iter()
                 .zip(slots)
-                .for_each(|(p, (s, r))| evaluate(p, s, r, None));
+                .for_each(|(p, (s, r))| evaluate(p, s, r, None, None));
         }
     }
+}
+
+/// The pair pass's loop for scenes with friction: the tangential slots zipped in, and the
+/// conductances when there are any (an `Either` of slots or `None`s keeps it to two arms).
+fn pair_pass_with_friction<F>(
+    list: &NeighborList,
+    states: &mut [BondState],
+    results: &mut [PairResult],
+    heat: Option<PairHeat<'_>>,
+    slots: &mut [PairTangential],
+    parallel: bool,
+    evaluate: F,
+) where
+    F: Fn(
+            &[u32; 2],
+            &mut BondState,
+            &mut PairResult,
+            Option<&mut f64>,
+            Option<&mut PairTangential>,
+        ) + Sync,
+{
+    use rayon::iter::Either;
+    let n = list.pairs.len();
+    if parallel {
+        let conductance = match heat {
+            Some(h) => Either::Left(h.conductance.par_iter_mut().map(Some)),
+            None => Either::Right((0..n).into_par_iter().map(|_| None)),
+        };
+        let outputs = states
+            .par_iter_mut()
+            .zip(results.par_iter_mut())
+            .zip(conductance.zip(slots.par_iter_mut()));
+        list.pairs
+            .par_iter()
+            .zip(outputs)
+            .for_each(|(p, ((s, r), (h, t)))| evaluate(p, s, r, h, Some(t)));
+    } else {
+        let conductance = match heat {
+            Some(h) => Either::Left(h.conductance.iter_mut().map(Some)),
+            None => Either::Right((0..n).map(|_| None)),
+        };
+        let outputs = states
+            .iter_mut()
+            .zip(results.iter_mut())
+            .zip(conductance.zip(slots.iter_mut()));
+        list.pairs
+            .iter()
+            .zip(outputs)
+            .for_each(|(p, ((s, r), (h, t)))| evaluate(p, s, r, h, Some(t)));
+    }
+}
+
+/// Torques and the tangential part of the wall contacts, for scenes with friction or rolling
+/// resistance (parallel over particles, after [`gather`]): each particle sums its incident pair
+/// torques in CSR order, then adds, wall by wall, the wall's tangential force to its force and
+/// the wall's torque, and its wall springs' lost energy to its own accumulator (M.63).
+pub fn torque_gather(
+    model: &Model,
+    particles: &mut Particles,
+    list: &NeighborList,
+    slots: &[PairTangential],
+    rotation: &mut Rotation,
+) {
+    let Some(tables) = model.friction.as_ref() else {
+        return;
+    };
+    let mut forces = std::mem::take(&mut particles.force);
+    let mut dissipated = std::mem::take(&mut particles.dissipated);
+    let mut torques = std::mem::take(&mut rotation.torque);
+    let mut wall_contacts = std::mem::take(&mut rotation.wall_contacts);
+    let stride = rotation.wall_stride();
+    let (state, omega) = (&*particles, &rotation.angular_velocity);
+    let sum = |k: usize,
+               ((force, lost), (torque, walls)): (
+        (&mut DVec3, &mut f64),
+        (&mut DVec3, &mut [WallTangential]),
+    )| {
+        let mut total = DVec3::ZERO;
+        for incidence in list.incident(k) {
+            let slot = &slots[incidence.pair as usize];
+            total += if incidence.first {
+                slot.torque_on_first
+            } else {
+                slot.torque_on_second
+            };
+        }
+        for (w, wall_slot) in walls.iter_mut().enumerate().take(model.walls.len()) {
+            let overlap = wall_overlap(model, state, k, w);
+            if overlap <= 0.0 {
+                *lost += std::mem::take(wall_slot).spring_energy;
+                continue;
+            }
+            let into_domain = model.walls[w].normal;
+            let params = model.wall_params(w, state.material[k]);
+            let kinematics = PairKinematics {
+                overlap,
+                overlap_rate: -state.velocity[k].dot(into_domain),
+                effective_radius: state.radius[k],
+                effective_mass: state.mass[k],
+            };
+            let (normal_force, elastic) =
+                contact::hertz_parts(params.effective_modulus, params.damping_ratio, &kinematics);
+            // The particle is the first body, the wall the second: the normal points into the wall.
+            let normal = -into_domain;
+            let arm = state.radius[k] - 0.5 * overlap;
+            let contact = TangentialContact {
+                normal,
+                contact_velocity: state.velocity[k] + (arm * omega[k]).cross(normal),
+                relative_angular_velocity: omega[k],
+                inverse_inertia_sum: 1.0 / rolling::sphere_inertia(state.mass[k], state.radius[k]),
+                normal_force,
+                elastic_normal_force: elastic,
+                bonded: false,
+            };
+            let step = tangential_step(
+                tables.wall(w, state.material[k]),
+                params.damping_ratio,
+                model.dt,
+                &kinematics,
+                &contact,
+                wall_slot.history,
+                wall_slot.spring_energy,
+            );
+            *force += step.force;
+            total += arm * normal.cross(step.force) + step.rolling_torque;
+            *lost += step.lost;
+            *wall_slot = WallTangential {
+                history: step.history,
+                spring_energy: step.spring_energy,
+            };
+        }
+        *torque = total;
+    };
+    if crate::worth_parallel(forces.len()) {
+        forces
+            .par_iter_mut()
+            .zip(dissipated.par_iter_mut())
+            .zip(
+                torques
+                    .par_iter_mut()
+                    .zip(wall_contacts.par_chunks_mut(stride)),
+            )
+            .enumerate()
+            .for_each(|(k, slots)| sum(k, slots));
+    } else {
+        forces
+            .iter_mut()
+            .zip(dissipated.iter_mut())
+            .zip(torques.iter_mut().zip(wall_contacts.chunks_mut(stride)))
+            .enumerate()
+            .for_each(|(k, slots)| sum(k, slots));
+    }
+    particles.force = forces;
+    particles.dissipated = dissipated;
+    rotation.torque = torques;
+    rotation.wall_contacts = wall_contacts;
 }
 
 /// Overlap of particle `k` with wall `w` [m] (positive in contact) and the wall's normal.

@@ -13,7 +13,8 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::particles::Particles;
+use crate::contact::rolling;
+use crate::particles::{Particles, Rotation};
 
 /// First half: half kick then drift (M.30, M.31).
 pub fn kick_drift(particles: &mut Particles, dt: f64) {
@@ -63,6 +64,36 @@ pub fn kick(particles: &mut Particles, dt: f64) {
         velocity
             .iter_mut()
             .zip(force.iter().zip(mass.iter()))
+            .for_each(update);
+    }
+}
+
+/// Half kick of the angular velocities (M.62): `ω += (dt/2) τ / I`, `I = (2/5) m r²`. Called
+/// with each half kick of the velocities, so ω follows the same velocity Verlet scheme; the
+/// spheres' orientation is not tracked (nothing depends on it).
+pub fn kick_rotation(particles: &Particles, rotation: &mut Rotation, dt: f64) {
+    let Rotation {
+        angular_velocity,
+        torque,
+        ..
+    } = rotation;
+    let update = |(w, (t, (m, r))): (&mut DVec3, (&DVec3, (&f64, &f64)))| {
+        *w += 0.5 * dt / rolling::sphere_inertia(*m, *r) * *t;
+    };
+    let shape = || particles.mass.iter().zip(&particles.radius);
+    if crate::worth_parallel(angular_velocity.len()) {
+        angular_velocity
+            .par_iter_mut()
+            .zip(
+                torque
+                    .par_iter()
+                    .zip(particles.mass.par_iter().zip(particles.radius.par_iter())),
+            )
+            .for_each(update);
+    } else {
+        angular_velocity
+            .iter_mut()
+            .zip(torque.iter().zip(shape()))
             .for_each(update);
     }
 }

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use glam::{DVec2, DVec3};
 
-use crate::contact::{BondParams, NormalParams, bond, hertz};
+use crate::contact::{BondParams, FrictionParams, NormalParams, bond, hertz, tangential};
 use crate::laser::{self, Laser};
 use crate::output::frame::{Needs, OptionalField};
 use crate::particles::{ParticleInit, Particles};
@@ -105,6 +105,7 @@ impl OutputSettings {
             Needs::Nothing => true,
             Needs::Bond => scene.bond.is_some(),
             Needs::Thermal => scene.thermal.is_some(),
+            Needs::Rotation => scene.contact.has_rotation(),
         };
         let fields = match out.and_then(|o| o.fields.as_ref()) {
             Some(names) => OptionalField::ALL
@@ -150,6 +151,64 @@ impl Guards {
     }
 }
 
+/// Tangential and rolling parameters (M.56–M.61), dense tables like the normal ones; present when
+/// the scene gives `contact.friction_coefficient` or `contact.rolling_friction_coefficient`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Friction {
+    materials: usize,
+    /// `[a * n + b]`: material pair (a, b); symmetric.
+    pair: Vec<FrictionParams>,
+    /// `[w * n + a]`: particle (material a) against wall w.
+    wall: Vec<FrictionParams>,
+}
+
+impl Friction {
+    /// Parameters of two particle materials.
+    #[must_use]
+    #[inline]
+    pub fn pair(&self, a: u16, b: u16) -> &FrictionParams {
+        &self.pair[usize::from(a) * self.materials + usize::from(b)]
+    }
+
+    /// Parameters of a particle material against wall `wall`.
+    #[must_use]
+    #[inline]
+    pub fn wall(&self, wall: usize, material: u16) -> &FrictionParams {
+        &self.wall[wall * self.materials + usize::from(material)]
+    }
+
+    fn build(scene: &Scene, materials: &[Material], walls: &[Wall]) -> Option<Self> {
+        if !scene.contact.has_rotation() {
+            return None;
+        }
+        let params = |a: &Material, b: &Material| FrictionParams {
+            effective_shear_modulus: tangential::effective_shear_modulus(
+                a.youngs_modulus,
+                a.poisson_ratio,
+                b.youngs_modulus,
+                b.poisson_ratio,
+            ),
+            sliding: scene.contact.friction_coefficient.unwrap_or(0.0),
+            rolling: scene.contact.rolling_friction_coefficient.unwrap_or(0.0),
+        };
+        let pair = materials
+            .iter()
+            .flat_map(|a| materials.iter().map(move |b| (a, b)))
+            .map(|(a, b)| params(a, b))
+            .collect();
+        let wall = walls
+            .iter()
+            .flat_map(|w| materials.iter().map(move |a| (w, a)))
+            .map(|(w, a)| params(a, &materials[usize::from(w.material)]))
+            .collect();
+        Some(Self {
+            materials: materials.len(),
+            pair,
+            wall,
+        })
+    }
+}
+
 /// Resolved, immutable run parameters.
 #[derive(Debug, Clone)]
 pub struct Model {
@@ -179,6 +238,9 @@ pub struct Model {
     pub thermal: Option<ThermalModel>,
     /// The laser, if the scene has `[laser]`.
     pub laser: Option<Laser>,
+    /// Tangential and rolling parameters, if the scene has friction or rolling resistance
+    /// (then the particles rotate).
+    pub friction: Option<Friction>,
     /// `[a * n + b]`: normal-law parameters of material pair (a, b); symmetric.
     pair_params: Vec<NormalParams>,
     /// `[w * n + a]`: particle (material a) against wall w; never bonded.
@@ -260,7 +322,7 @@ impl Model {
                 });
                 pair_params.push(NormalParams {
                     effective_modulus,
-                    damping_ratio: scene.contact.damping_ratio,
+                    damping_ratio: scene.contact.resolved_damping_ratio(),
                     bond,
                 });
             }
@@ -280,11 +342,13 @@ impl Model {
             for a in &materials {
                 wall_params.push(NormalParams {
                     effective_modulus: e_star(a, &materials[usize::from(w.material)]),
-                    damping_ratio: scene.contact.damping_ratio,
+                    damping_ratio: scene.contact.resolved_damping_ratio(),
                     bond: None,
                 });
             }
         }
+
+        let friction = Friction::build(scene, &materials, &walls);
 
         let sim = &scene.simulation;
         // Round-off in duration/dt (5e-3/5e-7 = 10000.000000000002) must not add a step.
@@ -316,6 +380,7 @@ impl Model {
             expected_impact_speed: sim.expected_impact_speed_m_s,
             guards: Guards::from_scene(scene.guards.as_ref()),
             output: OutputSettings::resolve(scene, steps),
+            friction,
             pair_params,
             wall_params,
         };

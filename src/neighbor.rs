@@ -83,13 +83,28 @@ impl NeighborList {
         ids: &[u64],
         states: &mut Vec<BondState>,
     ) {
+        self.rebuild_with_history::<()>(positions, radii, ids, states, None);
+    }
+
+    /// [`NeighborList::rebuild`], also carrying a second per-pair array (the tangential history
+    /// of scenes with friction) by the same merge-join; new pairs get `T::default()`. Pairs that
+    /// left the list were not touching, so their history was already reset.
+    pub fn rebuild_with_history<T: Copy + Default>(
+        &mut self,
+        positions: &[DVec3],
+        radii: &[f64],
+        ids: &[u64],
+        states: &mut Vec<BondState>,
+        history: Option<&mut Vec<T>>,
+    ) {
         let mut candidates = candidate_pairs(positions, radii, ids, self.skin);
         candidates.par_sort_unstable_by_key(|(key, _)| *key);
 
-        let mut new_states = Vec::with_capacity(candidates.len());
-        let mut old = self.keys.iter().zip(states.iter()).peekable();
+        // For each new pair, its index in the old list, if it was there.
+        let mut origins: Vec<Option<usize>> = Vec::with_capacity(candidates.len());
+        let mut old = self.keys.iter().zip(states.iter()).enumerate().peekable();
         for (key, _) in &candidates {
-            while let Some((old_key, _)) = old.peek() {
+            while let Some((_, (old_key, _))) = old.peek() {
                 if *old_key < key {
                     // A pair that left the list was apart by more than the skin; were it bonded,
                     // it would break at the next pair pass anyway (δ < 0 ≤ δ_crit). Only a step
@@ -100,14 +115,23 @@ impl NeighborList {
                 }
             }
             match old.peek() {
-                Some((old_key, old_state)) if *old_key == key => {
-                    new_states.push(**old_state);
+                Some((p, (old_key, _))) if *old_key == key => {
+                    origins.push(Some(*p));
                     old.next();
                 }
-                _ => new_states.push(BondState::Unbonded),
+                _ => origins.push(None),
             }
         }
-        *states = new_states;
+        *states = origins
+            .iter()
+            .map(|o| o.map_or(BondState::Unbonded, |p| states[p]))
+            .collect();
+        if let Some(history) = history {
+            *history = origins
+                .iter()
+                .map(|o| o.map_or_else(T::default, |p| history[p]))
+                .collect();
+        }
 
         self.keys = candidates.iter().map(|(key, _)| *key).collect();
         self.pairs = candidates.into_iter().map(|(_, pair)| pair).collect();
@@ -280,6 +304,22 @@ mod tests {
             assert!(ids[*a as usize] < ids[*b as usize]);
         }
         assert_eq!(list.incidence.len(), 2 * expected);
+    }
+
+    #[test]
+    fn history_follows_the_pair_across_rebuilds() {
+        let mut positions = vec![DVec3::ZERO, DVec3::X * 1.9, DVec3::X * 10.0];
+        let radii = vec![1.0; 3];
+        let ids = vec![7, 3, 5];
+        let mut list = NeighborList::new(0.5);
+        let (mut states, mut history) = (Vec::new(), Vec::new());
+        list.rebuild_with_history(&positions, &radii, &ids, &mut states, Some(&mut history));
+        history[0] = 42u32;
+        positions[2] = DVec3::new(-1.9, 0.0, 0.0);
+        list.rebuild_with_history(&positions, &radii, &ids, &mut states, Some(&mut history));
+        let kept = list.keys.iter().position(|k| *k == (3, 7)).unwrap();
+        assert_eq!(history[kept], 42);
+        assert_eq!(history[1 - kept], 0);
     }
 
     #[test]

@@ -109,3 +109,65 @@ impl Particles {
             + 0.0
     }
 }
+
+/// Tangential contact history of one particle against one wall (M.58, M.63).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct WallTangential {
+    /// Tangential displacement ξ [m], world frame, particle relative to the wall.
+    pub history: DVec3,
+    /// Spring energy `½ k_t |ξ|²` at the last evaluation [J] (M.63).
+    pub spring_energy: f64,
+}
+
+/// Rotation of the spheres (M.62), only for scenes with friction or rolling resistance; indexed
+/// like [`Particles`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Rotation {
+    /// Angular velocity ω [rad/s].
+    pub angular_velocity: Vec<DVec3>,
+    /// Total torque about the centre [N·m].
+    pub torque: Vec<DVec3>,
+    /// Number of walls.
+    pub walls: usize,
+    /// Tangential history of every particle against every wall, `[k * wall_stride() + w]`: each particle
+    /// owns its own slots, so the wall pass needs no shared writes.
+    pub wall_contacts: Vec<WallTangential>,
+}
+
+impl Rotation {
+    /// At rest, for `particles` particles and `walls` walls.
+    #[must_use]
+    pub fn new(particles: usize, walls: usize) -> Self {
+        Self {
+            angular_velocity: vec![DVec3::ZERO; particles],
+            torque: vec![DVec3::ZERO; particles],
+            walls,
+            wall_contacts: vec![WallTangential::default(); particles * walls.max(1)],
+        }
+    }
+
+    /// Slots per particle in `wall_contacts`: the wall count, but at least 1, so that the
+    /// per-particle chunks exist even without walls.
+    #[must_use]
+    pub fn wall_stride(&self) -> usize {
+        self.walls.max(1)
+    }
+
+    /// Rotational kinetic energy `Σ ½ I ω²`, `I = (2/5) m r²` [J] (M.62), in index order.
+    #[must_use]
+    pub fn kinetic_energy(&self, particles: &Particles) -> f64 {
+        self.angular_velocity
+            .iter()
+            .zip(particles.mass.iter().zip(&particles.radius))
+            .map(|(w, (m, r))| {
+                0.5 * crate::contact::rolling::sphere_inertia(*m, *r) * w.length_squared()
+            })
+            .sum()
+    }
+
+    /// Stored energy of the wall springs [J] (M.63), in index order.
+    #[must_use]
+    pub fn wall_spring_energy(&self) -> f64 {
+        self.wall_contacts.iter().map(|c| c.spring_energy).sum()
+    }
+}

@@ -14,12 +14,12 @@
 //! 7. Second half kick (M.32).
 
 use crate::contact::{BondState, hertz};
-use crate::forces::{self, GatherSummary, PairResult};
+use crate::forces::{self, GatherSummary, PairResult, PairTangential};
 use crate::integrate;
 use crate::laser;
 use crate::model::Model;
 use crate::neighbor::NeighborList;
-use crate::particles::Particles;
+use crate::particles::{Particles, Rotation};
 use crate::thermal::{self, ThermalState};
 
 /// A running simulation.
@@ -42,6 +42,12 @@ pub struct Simulation {
     peak_overlap_ratio: f64,
     /// Energies this run started from (the balances are measured against them).
     start: StartEnergies,
+    /// Angular velocities, torques and wall contact histories, if the scene has friction or
+    /// rolling resistance (otherwise nothing is allocated and no rotation pass runs).
+    pub rotation: Option<Rotation>,
+    /// Per pair slot (indexed like the neighbour list's pairs), with rotation only: the tangential
+    /// history, carried over rebuilds like `bond_states`, and the pair's torques.
+    tangential: Vec<PairTangential>,
     /// Steps taken.
     pub step: u64,
     /// Simulated time [s].
@@ -84,6 +90,27 @@ pub struct RestartState {
     pub thermal: Option<ThermalRestart>,
     /// The laser's last ray cast, for scenes with `[laser]`.
     pub laser: Option<laser::Snapshot>,
+    /// Rotation and tangential histories, for scenes with friction or rolling resistance.
+    pub rotation: Option<RotationRestart>,
+}
+
+/// Rotational part of [`RestartState`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RotationRestart {
+    /// Angular velocities [rad/s].
+    pub angular_velocity: Vec<glam::DVec3>,
+    /// Torques of the last step [N·m].
+    pub torque: Vec<glam::DVec3>,
+    /// Wall histories [m], `[k * max(walls, 1) + w]`.
+    pub wall_history: Vec<glam::DVec3>,
+    /// Wall spring energies [J], indexed like `wall_history`.
+    pub wall_spring_energy: Vec<f64>,
+    /// Pairs with a tangential history, as (id_lo, id_hi).
+    pub pair_ids: Vec<(u64, u64)>,
+    /// Their histories [m] (first → second particle of the key, world frame).
+    pub pair_history: Vec<glam::DVec3>,
+    /// Their spring energies [J].
+    pub pair_spring_energy: Vec<f64>,
 }
 
 /// Thermal part of [`RestartState`].
@@ -141,6 +168,14 @@ pub struct Diagnostics {
     pub thermal: Option<ThermalDiagnostics>,
 }
 
+/// How much a sticking tangential spring lowers a contact's stability limit (M.64, M.70): it
+/// oscillates with k_t = (4G*/E*) k_n against the reduced mass 2/7 m* (rotation included), so
+/// ω_t/ω_n = √(7/2 · 4G*/E*); the limit scales by the inverse where that exceeds 1.
+fn tangential_factor(effective_shear_modulus: f64, effective_modulus: f64) -> f64 {
+    let ratio = (3.5 * 4.0 * effective_shear_modulus / effective_modulus).sqrt();
+    1.0 / ratio.max(1.0)
+}
+
 /// The contact that limits the time step most (M.70).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StabilityLimit {
@@ -191,6 +226,10 @@ impl Simulation {
             .thermal
             .as_ref()
             .map(|t| ThermalState::new(t, &particles));
+        let rotation = model
+            .friction
+            .as_ref()
+            .map(|_| Rotation::new(particles.len(), model.walls.len()));
         let mut sim = Self {
             model,
             particles,
@@ -202,11 +241,14 @@ impl Simulation {
             gather_summary: GatherSummary::default(),
             peak_overlap_ratio: 0.0,
             start: StartEnergies::default(),
+            rotation,
+            tangential: Vec::new(),
             step: 0,
             time: 0.0,
         };
         sim.rebuild_neighbors();
         sim.gather_summary = sim.compute_forces();
+        sim.clear_tangential_history();
         // The t = 0 evaluation did no work over time; the energy the run starts with already
         // counts any bond it formed.
         sim.particles.dissipated.fill(0.0);
@@ -249,6 +291,74 @@ impl Simulation {
                 .laser
                 .as_ref()
                 .map(|_| self.laser_snapshot.clone()),
+            rotation: self.rotation.as_ref().map(|r| self.rotation_restart(r)),
+        }
+    }
+
+    fn rotation_restart(&self, rotation: &Rotation) -> RotationRestart {
+        let held: Vec<usize> = (0..self.tangential.len())
+            .filter(|&p| self.tangential[p] != PairTangential::default())
+            .collect();
+        RotationRestart {
+            angular_velocity: rotation.angular_velocity.clone(),
+            torque: rotation.torque.clone(),
+            wall_history: rotation.wall_contacts.iter().map(|c| c.history).collect(),
+            wall_spring_energy: rotation
+                .wall_contacts
+                .iter()
+                .map(|c| c.spring_energy)
+                .collect(),
+            pair_ids: held.iter().map(|&p| self.neighbors.key(p)).collect(),
+            pair_history: held.iter().map(|&p| self.tangential[p].history).collect(),
+            pair_spring_energy: held
+                .iter()
+                .map(|&p| self.tangential[p].spring_energy)
+                .collect(),
+        }
+    }
+
+    /// Rotation state from restart data (`None` without friction in the scene).
+    fn resumed_rotation(
+        model: &Model,
+        n: usize,
+        saved: Option<&RotationRestart>,
+    ) -> Result<Option<Rotation>, String> {
+        match (&model.friction, saved) {
+            (None, None) => Ok(None),
+            (Some(_), None) => Err(
+                "the scene has friction or rolling resistance but the restart data has no angular velocities"
+                    .into(),
+            ),
+            (None, Some(_)) => Err(
+                "the restart data has angular velocities but the scene has no friction or rolling resistance"
+                    .into(),
+            ),
+            (Some(_), Some(saved)) => {
+                let mut rotation = Rotation::new(n, model.walls.len());
+                if saved.angular_velocity.len() != n
+                    || saved.torque.len() != n
+                    || saved.wall_history.len() != rotation.wall_contacts.len()
+                    || saved.wall_spring_energy.len() != rotation.wall_contacts.len()
+                {
+                    return Err(format!(
+                        "restart data has {} angular velocities and {} wall histories for {n} particles and {} walls",
+                        saved.angular_velocity.len(),
+                        saved.wall_history.len(),
+                        model.walls.len()
+                    ));
+                }
+                rotation.angular_velocity.clone_from(&saved.angular_velocity);
+                rotation.torque.clone_from(&saved.torque);
+                for (slot, (history, energy)) in rotation
+                    .wall_contacts
+                    .iter_mut()
+                    .zip(saved.wall_history.iter().zip(&saved.wall_spring_energy))
+                {
+                    slot.history = *history;
+                    slot.spring_energy = *energy;
+                }
+                Ok(Some(rotation))
+            }
         }
     }
 
@@ -304,6 +414,7 @@ impl Simulation {
                 );
             }
         };
+        let rotation = Self::resumed_rotation(&model, n, state.rotation.as_ref())?;
         let mut sim = Self {
             neighbors: NeighborList::new(model.skin),
             model,
@@ -315,6 +426,8 @@ impl Simulation {
             gather_summary: GatherSummary::default(),
             peak_overlap_ratio: 0.0,
             start: StartEnergies::default(),
+            rotation,
+            tangential: Vec::new(),
             step: state.step,
             time: 0.0,
         };
@@ -330,6 +443,26 @@ impl Simulation {
         for p in 0..sim.neighbors.pairs.len() {
             if bonded.contains(&sim.neighbors.key(p)) {
                 sim.bond_states[p] = BondState::Bonded;
+            }
+        }
+        if let Some(saved) = &state.rotation {
+            let held: std::collections::HashMap<(u64, u64), (glam::DVec3, f64)> = saved
+                .pair_ids
+                .iter()
+                .copied()
+                .zip(
+                    saved
+                        .pair_history
+                        .iter()
+                        .copied()
+                        .zip(saved.pair_spring_energy.iter().copied()),
+                )
+                .collect();
+            for p in 0..sim.neighbors.pairs.len() {
+                if let Some(&(history, spring_energy)) = held.get(&sim.neighbors.key(p)) {
+                    sim.tangential[p].history = history;
+                    sim.tangential[p].spring_energy = spring_energy;
+                }
             }
         }
         // Overlaps for the diagnostics of the first row; the next step recomputes everything.
@@ -384,8 +517,18 @@ impl Simulation {
 
     fn rebuild_neighbors(&mut self) {
         let p = &self.particles;
-        self.neighbors
-            .rebuild(&p.position, &p.radius, &p.id, &mut self.bond_states);
+        if self.rotation.is_some() {
+            self.neighbors.rebuild_with_history(
+                &p.position,
+                &p.radius,
+                &p.id,
+                &mut self.bond_states,
+                Some(&mut self.tangential),
+            );
+        } else {
+            self.neighbors
+                .rebuild(&p.position, &p.radius, &p.id, &mut self.bond_states);
+        }
         self.pair_results
             .resize(self.neighbors.pairs.len(), PairResult::default());
     }
@@ -411,6 +554,10 @@ impl Simulation {
             &mut self.bond_states,
             &mut self.pair_results,
             heat,
+            self.rotation.as_ref().map(|r| forces::PairFriction {
+                angular_velocity: &r.angular_velocity,
+                slots: &mut self.tangential,
+            }),
         );
         let heat = match (&self.model.thermal, &mut self.thermal) {
             (Some(model), Some(state)) => {
@@ -437,13 +584,38 @@ impl Simulation {
             }
             _ => None,
         };
-        forces::gather(
+        let summary = forces::gather(
             &self.model,
             &mut self.particles,
             &self.neighbors,
             &self.pair_results,
             heat,
-        )
+        );
+        if let Some(rotation) = &mut self.rotation {
+            forces::torque_gather(
+                &self.model,
+                &mut self.particles,
+                &self.neighbors,
+                &self.tangential,
+                rotation,
+            );
+        }
+        summary
+    }
+
+    /// The set-up evaluation at t = 0 computed the tangential forces with a history advanced by
+    /// v_t dt; a run starts with no tangential displacement, so the history is cleared (the
+    /// energy it held was not counted either: `dissipated` is reset too).
+    fn clear_tangential_history(&mut self) {
+        if let Some(rotation) = &mut self.rotation {
+            for slot in &mut self.tangential {
+                slot.history = glam::DVec3::ZERO;
+                slot.spring_energy = 0.0;
+            }
+            rotation
+                .wall_contacts
+                .fill(crate::particles::WallTangential::default());
+        }
     }
 
     fn update_conductances(&mut self) {
@@ -507,6 +679,9 @@ impl Simulation {
     pub fn step(&mut self) {
         let dt = self.model.dt;
         integrate::kick_drift(&mut self.particles, dt);
+        if let Some(rotation) = &mut self.rotation {
+            integrate::kick_rotation(&self.particles, rotation, dt);
+        }
         if self.neighbors.needs_rebuild(&self.particles.position) {
             self.rebuild_neighbors();
         }
@@ -517,6 +692,9 @@ impl Simulation {
         let first_flows = self.thermal.is_some().then_some(summary.max_heat_rate);
         self.advance_temperatures(first_flows);
         integrate::kick(&mut self.particles, dt);
+        if let Some(rotation) = &mut self.rotation {
+            integrate::kick_rotation(&self.particles, rotation, dt);
+        }
         self.step += 1;
         #[allow(clippy::cast_precision_loss)]
         let time = self.step as f64 * dt; // no accumulated round-off over millions of steps
@@ -591,6 +769,12 @@ impl Simulation {
                     d.elastic_energy += hertz::elastic_energy(e_star, p.radius[k], overlap);
                 }
             }
+        }
+        if let Some(rotation) = &self.rotation {
+            // (M.63): rotation is kinetic energy, the tangential springs store elastic energy.
+            d.kinetic_energy += rotation.kinetic_energy(p);
+            d.elastic_energy += self.tangential.iter().map(|t| t.spring_energy).sum::<f64>()
+                + rotation.wall_spring_energy();
         }
         d.thermal = self.thermal.as_ref().map(|t| ThermalDiagnostics {
             enthalpy: t.total_enthalpy(),
@@ -757,8 +941,14 @@ impl Simulation {
                     params.damping_ratio,
                 ),
             };
+            let tangential = self.model.friction.as_ref().map_or(1.0, |f| {
+                tangential_factor(
+                    f.pair(p.material[a], p.material[b]).effective_shear_modulus,
+                    params.effective_modulus,
+                )
+            });
             consider(
-                integrate::stability_limit(stiffness, m_star, damping_ratio),
+                tangential * integrate::stability_limit(stiffness, m_star, damping_ratio),
                 (p.id[a], Some(p.id[b])),
                 result.overlap,
             );
@@ -770,8 +960,19 @@ impl Simulation {
                     let params = self.model.wall_params(w, p.material[k]);
                     let stiffness =
                         hertz::stiffness(params.effective_modulus, p.radius[k], overlap);
+                    let tangential = self.model.friction.as_ref().map_or(1.0, |f| {
+                        tangential_factor(
+                            f.wall(w, p.material[k]).effective_shear_modulus,
+                            params.effective_modulus,
+                        )
+                    });
                     consider(
-                        integrate::stability_limit(stiffness, p.mass[k], params.damping_ratio),
+                        tangential
+                            * integrate::stability_limit(
+                                stiffness,
+                                p.mass[k],
+                                params.damping_ratio,
+                            ),
                         (p.id[k], None),
                         overlap,
                     );
@@ -808,8 +1009,15 @@ impl Simulation {
                 .position(|x| !x.is_finite())
                 .map(|k| (k, "temperature"))
         });
+        let rotation = self.rotation.as_ref().and_then(|r| {
+            r.angular_velocity
+                .iter()
+                .position(|w| !w.is_finite())
+                .map(|k| (k, "angular_velocity"))
+        });
         integrate::first_non_finite(&self.particles)
             .or(thermal)
+            .or(rotation)
             .map(|(k, field)| (self.particles.id[k], field))
     }
 }

@@ -119,6 +119,72 @@ fn a_run_of_2t_equals_t_plus_a_restart_of_t_bit_for_bit() {
     assert_eq!(steps, (0..=20).map(|k| k * 500).collect::<Vec<_>>());
 }
 
+#[test]
+fn a_run_with_friction_restarts_bit_for_bit() {
+    // The column with friction: at 8 ms the bottom layer rests on the floor and ~40 pairs touch,
+    // so the restart must carry angular velocities, torques and pair and wall histories.
+    let dir = tempfile::tempdir().unwrap();
+    let column = common::scene_text("column.toml").replace(
+        "damping_ratio = 0.3 ",
+        "friction_coefficient = 0.5\nrolling_friction_coefficient = 0.05\ndamping_ratio = 0.3 ",
+    );
+    let full = column
+        .replace("duration_s = 0.1", "duration_s = 0.016")
+        .replace("column.h5", "full.h5");
+    let half = column
+        .replace("duration_s = 0.1", "duration_s = 0.008")
+        .replace("column.h5", "half.h5");
+    std::fs::write(dir.path().join("full.toml"), &full).unwrap();
+    std::fs::write(dir.path().join("half.toml"), &half).unwrap();
+    std::fs::write(
+        dir.path().join("continue.toml"),
+        full.replace("full.h5", "half.h5"),
+    )
+    .unwrap();
+    run_ok(dir.path(), &["full.toml"]);
+    run_ok(dir.path(), &["half.toml"]);
+    let halfway = read_last_frame(&dir.path().join("half.h5")).unwrap();
+    let saved = halfway
+        .state
+        .rotation
+        .as_ref()
+        .expect("rotation restart data");
+    assert!(
+        saved.pair_ids.len() > 20 && saved.wall_history.iter().any(|h| h.length() > 0.0),
+        "the restart must carry pair and wall histories: {} pairs",
+        saved.pair_ids.len()
+    );
+    run_ok(dir.path(), &["continue.toml", "--restart", "half.h5"]);
+    let bits = |name: &str| -> Vec<u64> {
+        let saved = read_last_frame(&dir.path().join(name)).unwrap();
+        let rotation = saved.state.rotation.unwrap();
+        assert_eq!(saved.state.step, 3200);
+        saved
+            .position
+            .iter()
+            .chain(&saved.velocity)
+            .chain(&rotation.angular_velocity)
+            .chain(&rotation.pair_history)
+            .flat_map(|v| v.to_array())
+            .map(f64::to_bits)
+            .collect()
+    };
+    assert!(
+        bits("full.h5") == bits("half.h5"),
+        "2T and T + restart T differ"
+    );
+    // The frames carry the angular velocity.
+    let file = hdf5::File::open(dir.path().join("full.h5")).unwrap();
+    let names = file.group("frames").unwrap().member_names().unwrap();
+    let last = file
+        .dataset(&format!(
+            "frames/{}/angular_velocity",
+            names.last().unwrap()
+        ))
+        .unwrap();
+    assert_eq!(last.shape(), vec![2000, 3]);
+}
+
 /// The long run of the interruption tests: frames every 200 steps, series rows every 50 (in
 /// `/series` and in `series.csv`), so that a killed run leaves rows after its last frame.
 fn long_track() -> String {

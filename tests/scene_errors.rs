@@ -138,6 +138,44 @@ const CASES: &[(&str, &str, &[&str])] = &[
         &["contact.damping_ratio = -0.2: must be ≥ 0"],
     ),
     (
+        "damping_ratio = 0.2",
+        "damping_ratio = 0.2\nrestitution = 0.5",
+        &[
+            "contact.restitution = given together with contact.damping_ratio",
+            "exactly one",
+        ],
+    ),
+    (
+        "damping_ratio = 0.2",
+        "model2 = 1",
+        &["contact.model2", "unknown field"],
+    ),
+    (
+        "damping_ratio = 0.2",
+        "friction_coefficient = 0.5",
+        &["contact = neither damping_ratio nor restitution: give exactly one of them"],
+    ),
+    (
+        "damping_ratio = 0.2",
+        "restitution = 0.0",
+        &["contact.restitution = 0: must be in (0, 1]"],
+    ),
+    (
+        "damping_ratio = 0.2",
+        "restitution = 1.5",
+        &["contact.restitution = 1.5: must be in (0, 1]"],
+    ),
+    (
+        "damping_ratio = 0.2",
+        "damping_ratio = 0.2\nfriction_coefficient = -0.5",
+        &["contact.friction_coefficient = -0.5: must be ≥ 0"],
+    ),
+    (
+        "damping_ratio = 0.2",
+        "damping_ratio = 0.2\nrolling_friction_coefficient = nan",
+        &["contact.rolling_friction_coefficient = NaN: must be a finite number"],
+    ),
+    (
         "adhesion_exponent = 1.0",
         "adhesion_exponent = 1.5",
         &[

@@ -41,6 +41,23 @@ pub fn bond_coefficient(damping_ratio: f64, effective_mass: f64, bond_stiffness:
     2.0 * damping_ratio * (effective_mass * bond_stiffness.max(0.0)).sqrt()
 }
 
+/// Damping ratio from a restitution coefficient, LIGGGHTS' parameterisation (M.55):
+///
+/// ```text
+/// β = ln e / √(ln² e + π²),   ξ_con = √(5/6) (−β)      [–],   0 < e ≤ 1
+/// ```
+///
+/// LIGGGHTS writes its Hertz damping as γ_n = 2 √(5/6) (−β) √(S_n m*) with S_n = 2E*√(r*δ),
+/// which is M.10 with this ξ_con. β is the linear spring–dashpot relation; with the Hertz law the
+/// restitution actually obtained is **not** e (e = 0.5 gives ξ_con = 0.19668 and a measured
+/// e ≈ 0.55, `tests/friction.rs`). The key follows LIGGGHTS so that scenes are comparable.
+#[must_use]
+pub fn damping_ratio_from_restitution(restitution: f64) -> f64 {
+    let log_e = restitution.ln();
+    let beta = log_e / (log_e * log_e + std::f64::consts::PI * std::f64::consts::PI).sqrt();
+    (5.0_f64 / 6.0).sqrt() * (-beta)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -53,6 +70,19 @@ mod tests {
         let expected =
             2.0 * 0.3 * (2.0 * 5e8 * 4e-6 * 5e-4_f64.sqrt()).sqrt() * 1e-5_f64.powf(0.25);
         assert!((c1 / expected - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn restitution_conversion_matches_liggghts() {
+        // e = 0.5: ln e = −0.693147, β = −0.215454, ξ = 0.912871 × 0.215454 = 0.196681.
+        assert!((damping_ratio_from_restitution(0.5) - 0.196_681).abs() < 1e-6);
+        assert_eq!(damping_ratio_from_restitution(1.0), 0.0);
+        // The inverse, e = exp(−π ξ̃ / √(1 − ξ̃²)) with ξ̃ = ξ √(6/5), returns e.
+        for e in [0.05, 0.3, 0.5, 0.9] {
+            let xi = damping_ratio_from_restitution(e) * (6.0_f64 / 5.0).sqrt();
+            let back = (-std::f64::consts::PI * xi / (1.0 - xi * xi).sqrt()).exp();
+            assert!((back / e - 1.0).abs() < 1e-13, "{e}: {back}");
+        }
     }
 
     #[test]

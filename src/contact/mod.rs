@@ -12,6 +12,8 @@
 pub mod bond;
 pub mod damping;
 pub mod hertz;
+pub mod rolling;
+pub mod tangential;
 
 pub use bond::BondParams;
 
@@ -24,6 +26,19 @@ pub struct NormalParams {
     pub damping_ratio: f64,
     /// The bonded branch, if the scene has a `[bond]` section.
     pub bond: Option<BondParams>,
+}
+
+/// Parameters of the tangential and rolling laws of one material pair (or material and wall),
+/// for scenes with `contact.friction_coefficient` or `contact.rolling_friction_coefficient`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrictionParams {
+    /// Effective shear modulus G* [Pa] (M.56).
+    pub effective_shear_modulus: f64,
+    /// Sliding friction coefficient μ [–] (Coulomb limit, M.59); 0 switches the tangential
+    /// force off.
+    pub sliding: f64,
+    /// Rolling friction coefficient μ_r [–] (M.61); 0 switches rolling resistance off.
+    pub rolling: f64,
 }
 
 /// Kinematics of one pair at one instant.

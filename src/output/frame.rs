@@ -81,6 +81,8 @@ pub enum OptionalField {
     Melted,
     /// Share of the latent heat taken [0, 1].
     MeltFraction,
+    /// Angular velocity [rad/s] (scenes with friction or rolling resistance).
+    AngularVelocity,
 }
 
 /// What an optional field needs from the scene.
@@ -92,13 +94,16 @@ pub enum Needs {
     Bond,
     /// A `[thermal]` section.
     Thermal,
+    /// `contact.friction_coefficient` or `contact.rolling_friction_coefficient` (rotation).
+    Rotation,
 }
 
 impl OptionalField {
     /// Every optional field, in the order they are written.
-    pub const ALL: [Self; 8] = [
+    pub const ALL: [Self; 9] = [
         Self::Force,
         Self::Contacts,
+        Self::AngularVelocity,
         Self::Temperature,
         Self::Melted,
         Self::MeltFraction,
@@ -119,6 +124,7 @@ impl OptionalField {
             Self::Temperature => "temperature",
             Self::Melted => "melted",
             Self::MeltFraction => "melt_fraction",
+            Self::AngularVelocity => "angular_velocity",
         }
     }
 
@@ -135,6 +141,7 @@ impl OptionalField {
             Self::Force | Self::Contacts => Needs::Nothing,
             Self::Bonds | Self::BondOverlap | Self::BondForce => Needs::Bond,
             Self::Temperature | Self::Melted | Self::MeltFraction => Needs::Thermal,
+            Self::AngularVelocity => Needs::Rotation,
         }
     }
 }
@@ -179,6 +186,13 @@ pub fn capture(sim: &Simulation, selected: &[OptionalField]) -> Frame {
             name: "contacts",
             unit: "1",
             values: Values::U64(sim.contact_counts()),
+        });
+    }
+    if let (Some(r), true) = (&sim.rotation, has(OptionalField::AngularVelocity)) {
+        points.push(Field {
+            name: "angular_velocity",
+            unit: "rad/s",
+            values: vec3(&r.angular_velocity),
         });
     }
     if let Some(t) = &sim.thermal {

@@ -29,7 +29,7 @@ use super::frame::{Frame, Values};
 use super::xdmf::{self, FrameMeta, POINT_INDEX};
 use super::{OutputError, SeriesColumn, SeriesKind, SeriesValue, series_columns};
 use crate::laser::Snapshot;
-use crate::simulation::{RestartState, ThermalRestart};
+use crate::simulation::{RestartState, RotationRestart, ThermalRestart};
 
 /// Value of the root attribute `format`.
 pub const FORMAT_NAME: &str = "am-sim";
@@ -433,6 +433,32 @@ fn write_restart(group: &Group, state: &RestartState) -> hdf5::Result<()> {
             .create("max_substeps")?
             .write_scalar(&t.max_substeps)?;
     }
+    if let Some(r) = &state.rotation {
+        let vectors = |name: &str, v: &[DVec3]| {
+            let data = rows(v);
+            group
+                .new_dataset_builder()
+                .with_data(
+                    ArrayView2::from_shape((data.len(), 3), data.as_flattened()).expect("N×3"),
+                )
+                .create(name)
+                .map(|_| ())
+        };
+        vectors("angular_velocity", &r.angular_velocity)?;
+        vectors("torque", &r.torque)?;
+        vectors("wall_tangential_history", &r.wall_history)?;
+        plain(
+            "wall_tangential_energy",
+            ArrayView1::from(&r.wall_spring_energy),
+        )?;
+        let ids: Vec<[u64; 2]> = r.pair_ids.iter().map(|&(a, b)| [a, b]).collect();
+        group
+            .new_dataset_builder()
+            .with_data(ArrayView2::from_shape((ids.len(), 2), ids.as_flattened()).expect("P×2"))
+            .create("tangential_ids")?;
+        vectors("tangential_history", &r.pair_history)?;
+        plain("tangential_energy", ArrayView1::from(&r.pair_spring_energy))?;
+    }
     if let Some(snapshot) = &state.laser {
         let lit: Vec<u64> = snapshot.lit.iter().map(|(k, _)| *k as u64).collect();
         let at: Vec<[f64; 3]> = snapshot.lit.iter().map(|(_, x)| x.to_array()).collect();
@@ -534,6 +560,20 @@ pub fn read_last_frame(path: &Path) -> Result<SavedRun> {
             None
         };
         let bonded: Vec<u64> = restart.dataset("bonded_ids")?.read_raw()?;
+        let rotation = if restart.link_exists("angular_velocity") {
+            let ids: Vec<u64> = restart.dataset("tangential_ids")?.read_raw()?;
+            Some(RotationRestart {
+                angular_velocity: vec3(restart.dataset("angular_velocity")?)?,
+                torque: vec3(restart.dataset("torque")?)?,
+                wall_history: vec3(restart.dataset("wall_tangential_history")?)?,
+                wall_spring_energy: restart.dataset("wall_tangential_energy")?.read_raw()?,
+                pair_ids: ids.chunks_exact(2).map(|c| (c[0], c[1])).collect(),
+                pair_history: vec3(restart.dataset("tangential_history")?)?,
+                pair_spring_energy: restart.dataset("tangential_energy")?.read_raw()?,
+            })
+        } else {
+            None
+        };
         Ok(SavedRun {
             scene: scene.as_str().to_string(),
             frame: index,
@@ -547,6 +587,7 @@ pub fn read_last_frame(path: &Path) -> Result<SavedRun> {
                 bonded: bonded.chunks_exact(2).map(|c| (c[0], c[1])).collect(),
                 thermal,
                 laser,
+                rotation,
             },
         })
     };

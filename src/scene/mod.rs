@@ -130,8 +130,36 @@ pub struct MaterialConfig {
 pub struct ContactConfig {
     /// Normal contact model; only `"hertz"` (paper eqs. 12, 26).
     pub model: ContactModel,
-    /// Contact damping ratio ξ_con of paper eq. 26, `≥ 0`.
-    pub damping_ratio: f64,
+    /// Contact damping ratio ξ_con of paper eq. 26, `≥ 0`; or give `restitution`.
+    pub damping_ratio: Option<f64>,
+    /// Restitution coefficient e in `(0, 1]`, converted to ξ_con as LIGGGHTS does (M.55); give
+    /// exactly one of it and `damping_ratio`.
+    pub restitution: Option<f64>,
+    /// Sliding friction coefficient μ, `≥ 0`: Mindlin tangential spring with a Coulomb limit
+    /// (M.56–M.60), and particle rotation; absent: no tangential force.
+    pub friction_coefficient: Option<f64>,
+    /// Rolling friction coefficient μ_r, `≥ 0`: constant directional torque (M.61), and particle
+    /// rotation; absent: no rolling resistance.
+    pub rolling_friction_coefficient: Option<f64>,
+}
+
+impl ContactConfig {
+    /// ξ_con: `damping_ratio`, or the one converted from `restitution` (M.55); 0 if neither is
+    /// given (validation rejects that).
+    #[must_use]
+    pub fn resolved_damping_ratio(&self) -> f64 {
+        match (self.damping_ratio, self.restitution) {
+            (Some(xi), _) => xi,
+            (None, Some(e)) => crate::contact::damping::damping_ratio_from_restitution(e),
+            (None, None) => 0.0,
+        }
+    }
+
+    /// True when the scene asks for tangential friction or rolling resistance, and hence rotation.
+    #[must_use]
+    pub fn has_rotation(&self) -> bool {
+        self.friction_coefficient.is_some() || self.rolling_friction_coefficient.is_some()
+    }
 }
 
 /// Normal contact models.

@@ -145,7 +145,7 @@ pub fn validate(scene: &Scene) -> Vec<Violation> {
         }
     }
 
-    c.non_negative("contact.damping_ratio", scene.contact.damping_ratio);
+    validate_contact(&mut c, &scene.contact);
 
     if let Some(bond) = &scene.bond {
         validate_bond(&mut c, scene, bond);
@@ -197,6 +197,33 @@ pub fn validate(scene: &Scene) -> Vec<Violation> {
         validate_output(&mut c, scene, out);
     }
     c.violations
+}
+
+fn validate_contact(c: &mut Checker, contact: &super::ContactConfig) {
+    match (contact.damping_ratio, contact.restitution) {
+        (Some(_), Some(_)) => c.fail(
+            "contact.restitution",
+            "given together with contact.damping_ratio",
+            "give exactly one of them: restitution is converted to damping_ratio (docs/model.md M.55)",
+        ),
+        (None, None) => c.fail(
+            "contact",
+            "neither damping_ratio nor restitution",
+            "give exactly one of them",
+        ),
+        (Some(xi), None) => c.non_negative("contact.damping_ratio", xi),
+        (None, Some(e)) => {
+            if c.finite("contact.restitution", e) && !(e > 0.0 && e <= 1.0) {
+                c.fail("contact.restitution", e, "must be in (0, 1]");
+            }
+        }
+    }
+    if let Some(mu) = contact.friction_coefficient {
+        c.non_negative("contact.friction_coefficient", mu);
+    }
+    if let Some(mu_r) = contact.rolling_friction_coefficient {
+        c.non_negative("contact.rolling_friction_coefficient", mu_r);
+    }
 }
 
 fn validate_bond(c: &mut Checker, scene: &Scene, bond: &super::BondConfig) {
@@ -600,6 +627,11 @@ fn validate_output(c: &mut Checker, scene: &Scene, out: &super::OutputConfig) {
                 Needs::Thermal if scene.thermal.is_none() => {
                     c.fail(key, format!("\"{name}\""), "needs a [thermal] section")
                 }
+                Needs::Rotation if !scene.contact.has_rotation() => c.fail(
+                    key,
+                    format!("\"{name}\""),
+                    "needs contact.friction_coefficient or contact.rolling_friction_coefficient",
+                ),
                 _ => {}
             },
         }
