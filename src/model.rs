@@ -324,11 +324,12 @@ impl Model {
             expected_impact_speed: sim.expected_impact_speed_m_s,
             deposition: scene.deposition.as_ref().map(|d| {
                 #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-                let max_steps = (d.max_duration_s / sim.dt_s).ceil() as u64;
+                let max_steps = (d.max_duration_s / sim.dt_s * (1.0 - 1e-12)).ceil() as u64;
                 Deposition {
                     max_steps,
                     check_every: d.check_every_steps.unwrap_or(1000),
-                    kinetic_energy_ratio: d.kinetic_energy_ratio.unwrap_or(1e-6),
+                    kinetic_energy_ratio: d.kinetic_energy_ratio.unwrap_or(1e-4),
+                    damping_time: d.damping_time_s,
                 }
             }),
             output: OutputSettings::resolve(scene, steps),

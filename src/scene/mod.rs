@@ -326,10 +326,13 @@ pub struct ImportConfig {
 pub struct DepositionConfig {
     /// Deposition time after which an unsettled bed stops the run with an error [s], `> 0`.
     pub max_duration_s: f64,
-    /// Settling threshold, `> 0`; default 1e-6.
+    /// Settling threshold, `> 0`; default 1e-4.
     pub kinetic_energy_ratio: Option<f64>,
     /// Steps between checks of the criterion, `≥ 1`; default 1000.
     pub check_every_steps: Option<u64>,
+    /// Background damping during deposition (M.60): velocities decay as exp(−t/τ) besides the
+    /// contacts' damping [s], `> 0`; default none. Frictionless spheres need it to come to rest.
+    pub damping_time_s: Option<f64>,
 }
 
 /// `[[walls]]`: an infinite plane; particles stay on the side the normal points to.

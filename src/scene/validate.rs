@@ -888,6 +888,9 @@ fn validate_deposition(c: &mut Checker, scene: &Scene, deposition: &DepositionCo
     if let Some(ratio) = deposition.kinetic_energy_ratio {
         c.positive("deposition.kinetic_energy_ratio", ratio);
     }
+    if let Some(tau) = deposition.damping_time_s {
+        c.positive("deposition.damping_time_s", tau);
+    }
     if deposition.check_every_steps == Some(0) {
         c.fail("deposition.check_every_steps", 0, "must be ≥ 1");
     }
