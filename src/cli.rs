@@ -212,6 +212,12 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
         } else {
             ProgressBar::with_draw_target(Some(settings.max_steps), ProgressDrawTarget::stderr())
         };
+        bar.set_style(
+            ProgressStyle::with_template(
+                "deposition {wide_bar} {pos}/{len} steps | E_kin/(m g d) = {msg} | {elapsed}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
         let report = pool.install(|| {
             crate::bed::deposition::settle(&mut sim, &settings, |r| {
                 bar.set_position(r.steps);
