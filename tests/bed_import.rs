@@ -280,3 +280,19 @@ fn an_am_sim_frame_round_trips_exactly() {
     let missing = build_in(dir.path(), &block("frame = 7\n")).unwrap_err();
     assert!(missing.contains("no complete frame 7"), "{missing}");
 }
+
+#[test]
+fn every_shipped_scene_builds_its_particles() {
+    // Scene loading validates; building also reads `[[import]]` files (relative to scenes/) and
+    // places `[[insert]]` spheres, which validation cannot check.
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    for entry in std::fs::read_dir(dir).expect("scenes/") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            let (_, particles) =
+                Model::try_build(&scene).unwrap_or_else(|e| panic!("{}", e.in_file(&path)));
+            assert!(!particles.is_empty(), "{}", path.display());
+        }
+    }
+}
