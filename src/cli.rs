@@ -105,7 +105,7 @@ pub fn main() -> ExitCode {
 
 fn load(path: &Path) -> Result<Simulation, String> {
     let scene = Scene::load(path).map_err(|e| e.to_string())?;
-    let (model, particles) = Model::build(&scene);
+    let (model, particles) = Model::try_build(&scene).map_err(|e| e.in_file(path).to_string())?;
     Ok(Simulation::new(model, particles))
 }
 
@@ -113,7 +113,8 @@ fn load(path: &Path) -> Result<Simulation, String> {
 #[cfg(feature = "hdf5")]
 fn resume(scene_path: &Path, file: &Path) -> Result<Simulation, String> {
     let scene = Scene::load(scene_path).map_err(|e| e.to_string())?;
-    let (model, mut particles) = Model::build(&scene);
+    let (model, mut particles) =
+        Model::try_build(&scene).map_err(|e| e.in_file(scene_path).to_string())?;
     let saved = crate::output::hdf5::read_last_frame(file).map_err(|e| e.to_string())?;
     if saved.id != particles.id {
         return Err(format!(
@@ -209,6 +210,44 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
     );
     for w in report.warnings.iter().chain(&instability) {
         say!("warning: {w}");
+    }
+
+    // [deposition] (not on --restart: the saved frames are already of the settled bed).
+    if let (Some(settings), None) = (sim.model.deposition, &args.restart) {
+        let bar = if args.quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::with_draw_target(Some(settings.max_steps), ProgressDrawTarget::stderr())
+        };
+        bar.set_style(
+            ProgressStyle::with_template(
+                "deposition {wide_bar} {pos}/{len} steps | E_kin/(m g d) = {msg} | {elapsed}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        let report = pool.install(|| {
+            crate::bed::deposition::settle(&mut sim, &settings, |r| {
+                bar.set_position(r.steps);
+                bar.set_message(format!("{:.2e}", r.kinetic_energy_ratio));
+            })
+        });
+        bar.finish_and_clear();
+        if let Some(trip) = &report.stopped {
+            let message = format!("deposition: {}", stop(&sim, &mut writers, trip, 0.0));
+            let _ = writers.close();
+            return Err(message);
+        }
+        let line = format!(
+            "deposition: {} steps ({:.4e} s), kinetic energy per particle {:.2e} m̄ g d̄ (criterion {:.1e})",
+            report.steps, report.time, report.kinetic_energy_ratio, settings.kinetic_energy_ratio
+        );
+        if !report.settled {
+            let _ = writers.close();
+            return Err(format!(
+                "{line}: not settled within deposition.max_duration_s; raise it, or raise deposition.kinetic_energy_ratio"
+            ));
+        }
+        say!("{line}: settled; the run starts now (t = 0)");
     }
 
     // Ctrl-C asks the loop to stop after the current step; the last state is then written.

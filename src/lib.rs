@@ -12,6 +12,7 @@
 //!   the pure laws in [`contact`]) → [`output`]. `docs/architecture.md` has the one-page map,
 //!   `docs/model.md` the numbered equations cited in doc comments as (M.x).
 
+pub mod bed;
 pub mod check;
 pub mod cli;
 pub mod contact;

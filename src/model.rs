@@ -6,13 +6,15 @@ use std::path::PathBuf;
 
 use glam::{DVec2, DVec3};
 
+use crate::bed::deposition::Deposition;
+use crate::bed::rng::SplitMix64;
 use crate::contact::{BondParams, FrictionParams, NormalParams, bond, hertz, tangential};
 use crate::laser::{self, Laser};
 use crate::output::frame::{Needs, OptionalField};
 use crate::particles::{ParticleInit, Particles};
 use crate::scene::{
     Axis, ConductionConfig, CriterionConfig, LaserConfig, MeltingRule, PathConfig, Scene,
-    ThermalConfig, validate::lattice_sites,
+    SceneError, ThermalConfig, Violation, validate::lattice_sites,
 };
 use crate::thermal::{ConductionModel, ThermalMaterial, ThermalModel};
 
@@ -241,6 +243,8 @@ pub struct Model {
     /// Tangential and rolling parameters, if the scene has friction or rolling resistance
     /// (then the particles rotate).
     pub friction: Option<Friction>,
+    /// Settling under gravity before the run, if the scene has `[deposition]`.
+    pub deposition: Option<Deposition>,
     /// `[a * n + b]`: normal-law parameters of material pair (a, b); symmetric.
     pair_params: Vec<NormalParams>,
     /// `[w * n + a]`: particle (material a) against wall w; never bonded.
@@ -269,8 +273,22 @@ impl Model {
     }
 
     /// Resolves a validated scene into the model and the initial particles.
+    ///
+    /// # Panics
+    /// If `[[import]]` files cannot be read or `[[insert]]` cannot place its spheres: scenes
+    /// with those blocks should use [`Model::try_build`].
     #[must_use]
     pub fn build(scene: &Scene) -> (Self, Particles) {
+        Self::try_build(scene).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// Resolves a validated scene into the model and the initial particles, reading
+    /// `[[import]]` files and placing `[[insert]]` spheres.
+    ///
+    /// # Errors
+    /// [`SceneError::Invalid`] naming the block's key, value and reason for every file that
+    /// cannot be read or parsed and every insertion that cannot place its spheres.
+    pub fn try_build(scene: &Scene) -> Result<(Self, Particles), SceneError> {
         let materials: Vec<Material> = scene
             .materials
             .iter()
@@ -288,7 +306,22 @@ impl Model {
                 .expect("validated: material exists");
             u16::try_from(k).expect("fewer than 65536 materials")
         };
-        let particles = initial_particles(scene, &materials, &material_index);
+        let mut particles = initial_particles(scene, &materials, &material_index);
+        let mut violations = Vec::new();
+        add_imported(scene, &materials, &mut particles, &mut violations);
+        add_inserted(
+            scene,
+            &materials,
+            &material_index,
+            &mut particles,
+            &mut violations,
+        );
+        if !violations.is_empty() {
+            return Err(SceneError::Invalid {
+                path: None,
+                violations,
+            });
+        }
 
         let e_star = |a: &Material, b: &Material| {
             hertz::effective_modulus(
@@ -379,12 +412,22 @@ impl Model {
             laser: scene.laser.as_ref().map(|l| laser(l, smallest_radius)),
             expected_impact_speed: sim.expected_impact_speed_m_s,
             guards: Guards::from_scene(scene.guards.as_ref()),
+            deposition: scene.deposition.as_ref().map(|d| {
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let max_steps = (d.max_duration_s / sim.dt_s * (1.0 - 1e-12)).ceil() as u64;
+                Deposition {
+                    max_steps,
+                    check_every: d.check_every_steps.unwrap_or(1000),
+                    kinetic_energy_ratio: d.kinetic_energy_ratio.unwrap_or(1e-4),
+                    damping_time: d.damping_time_s,
+                }
+            }),
             output: OutputSettings::resolve(scene, steps),
             friction,
             pair_params,
             wall_params,
         };
-        (model, particles)
+        Ok((model, particles))
     }
 }
 
@@ -530,23 +573,163 @@ fn initial_particles(
     particles
 }
 
-/// SplitMix64 (Steele, Lea & Flood 2014): a tiny, well-mixed generator whose sequence is fixed
-/// forever, so a seed in a scene file always gives the same bed, whatever crate versions are used.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+/// Appends the particles of every `[[import]]` file (rows in file-id order when the file has
+/// ids); problems are added to `violations` under the block's keys.
+fn add_imported(
+    scene: &Scene,
+    materials: &[Material],
+    particles: &mut Particles,
+    violations: &mut Vec<Violation>,
+) {
+    use crate::bed::import;
+    use crate::scene::ImportFormat;
+    for (k, cfg) in scene.import.iter().enumerate() {
+        let path = scene.base_dir.join(&cfg.file);
+        let fail = |violations: &mut Vec<Violation>, key: &str, reason: String| {
+            violations.push(Violation {
+                key: format!("import[{k}].{key}"),
+                value: format!("\"{}\" ({})", cfg.file, path.display()),
+                reason,
+            });
+        };
+        let rows = match cfg.format {
+            ImportFormat::Csv => import::read_text(&path).and_then(|t| import::parse_csv(&t)),
+            ImportFormat::LiggghtsDump => import::read_text(&path)
+                .and_then(|t| import::parse_liggghts_dump(&t, cfg.timestep))
+                .map(|snapshot| snapshot.particles),
+            ImportFormat::AmSimH5 => import::read_am_sim_h5(&path, cfg.frame),
+        };
+        let rows = match rows {
+            Ok(rows) if rows.is_empty() => {
+                fail(violations, "file", "the file holds no particles".into());
+                continue;
+            }
+            Ok(rows) => rows,
+            Err(e) => {
+                fail(violations, "file", e);
+                continue;
+            }
+        };
+        let scale = cfg.scale.unwrap_or(1.0);
+        let shift = DVec3::from_array(cfg.shift_m);
+        let mut inits = Vec::with_capacity(rows.len());
+        for (row, p) in rows.iter().enumerate() {
+            let Some(name) = p.material.as_deref().or(cfg.material.as_deref()) else {
+                fail(
+                    violations,
+                    "material",
+                    format!(
+                        "missing: particle {row} of the file (in id order) names no material; give import[{k}].material"
+                    ),
+                );
+                break;
+            };
+            let Some(material) = materials.iter().position(|m| m.name == name) else {
+                let known: Vec<&str> = materials.iter().map(|m| m.name.as_str()).collect();
+                fail(
+                    violations,
+                    "file",
+                    format!(
+                        "particle {row} (in id order) has material \"{name}\": no such material; defined: {known:?}"
+                    ),
+                );
+                break;
+            };
+            inits.push(ParticleInit {
+                position: scale * p.position + shift,
+                velocity: scale * p.velocity,
+                radius: scale * p.radius,
+                material: u16::try_from(material).expect("fewer than 65536 materials"),
+            });
+        }
+        if inits.len() == rows.len() {
+            for init in inits {
+                particles.push(init, materials[usize::from(init.material)].density);
+            }
+        }
     }
+}
 
-    /// Uniform in [−1, 1).
-    fn symmetric(&mut self) -> f64 {
-        #[allow(clippy::cast_precision_loss)]
-        let unit = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-        2.0 * unit - 1.0
+/// Appends the spheres of every `[[insert]]`: diameters drawn from the size distribution,
+/// sorted largest first, placed by random sequential addition around the particles already
+/// built; problems are added to `violations` under the block's keys.
+fn add_inserted(
+    scene: &Scene,
+    materials: &[Material],
+    material_index: &dyn Fn(&str) -> u16,
+    particles: &mut Particles,
+    violations: &mut Vec<Violation>,
+) {
+    use crate::bed::insertion::{ATTEMPTS_PER_SPHERE, InsertionError, insert_spheres};
+    use crate::scene::validate::size_distribution;
+    for (k, cfg) in scene.insert.iter().enumerate() {
+        let psd = size_distribution(&cfg.size).expect("validated: the size keys define a PSD");
+        let (lo, hi) = (
+            DVec3::from_array(cfg.min_corner_m),
+            DVec3::from_array(cfg.max_corner_m),
+        );
+        let mut rng = SplitMix64(cfg.seed);
+        let mut diameters = Vec::new();
+        if let Some(n) = cfg.count {
+            diameters.extend((0..n).map(|_| psd.sample(&mut rng)));
+        } else if let Some(fraction) = cfg.solid_fraction {
+            let target = fraction * (hi - lo).element_product();
+            let mut solid = 0.0;
+            while solid < target {
+                let d = psd.sample(&mut rng);
+                solid += std::f64::consts::PI / 6.0 * d.powi(3);
+                diameters.push(d);
+            }
+        }
+        let mut radii: Vec<f64> = diameters.iter().map(|d| 0.5 * d).collect();
+        radii.sort_by(|a, b| b.total_cmp(a));
+        let obstacles: Vec<(DVec3, f64)> = particles
+            .position
+            .iter()
+            .copied()
+            .zip(particles.radius.iter().copied())
+            .collect();
+        match insert_spheres(lo, hi, &radii, &obstacles, &mut rng) {
+            Ok(centres) => {
+                let material = material_index(&cfg.material);
+                let density = materials[usize::from(material)].density;
+                for (x, r) in centres.into_iter().zip(radii) {
+                    particles.push(
+                        ParticleInit {
+                            position: x,
+                            velocity: DVec3::from_array(cfg.velocity_m_s),
+                            radius: r,
+                            material,
+                        },
+                        density,
+                    );
+                }
+            }
+            Err(InsertionError::TooLarge { radius, axis }) => violations.push(Violation {
+                key: format!("insert[{k}].max_corner_m"),
+                value: format!("{:?} (min_corner_m = {:?})", cfg.max_corner_m, cfg.min_corner_m),
+                reason: format!(
+                    "a sphere of diameter {:.4e} m drawn from insert[{k}].size does not fit the box along {}: enlarge the box or set size.max_m",
+                    2.0 * radius,
+                    ["x", "y", "z"][axis]
+                ),
+            }),
+            Err(InsertionError::Jammed {
+                placed,
+                requested,
+                solid_fraction,
+            }) => violations.push(Violation {
+                key: format!(
+                    "insert[{k}].{}",
+                    if cfg.count.is_some() { "count" } else { "solid_fraction" }
+                ),
+                value: cfg
+                    .count
+                    .map_or_else(|| format!("{:?}", cfg.solid_fraction.unwrap_or_default()), |n| n.to_string()),
+                reason: format!(
+                    "placed only {placed} of {requested} spheres (solid fraction {solid_fraction:.3}) before {ATTEMPTS_PER_SPHERE} random positions in a row overlapped: random sequential addition jams near a solid fraction of 0.38; enlarge the box or ask for fewer spheres"
+                ),
+            }),
+        }
     }
 }

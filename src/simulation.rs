@@ -256,6 +256,15 @@ impl Simulation {
         sim
     }
 
+    /// Makes the current state the start of the run: step 0 at t = 0, nothing dissipated yet, and
+    /// the balances and peaks measured from here (after a deposition, say).
+    pub fn restart_clock(&mut self) {
+        self.step = 0;
+        self.time = 0.0;
+        self.particles.dissipated.fill(0.0);
+        self.mark_start();
+    }
+
     /// Takes the current state as the reference of the run's energy balances.
     fn mark_start(&mut self) {
         let d = self.diagnostics();

@@ -515,3 +515,153 @@ fn a_missing_file_names_the_file() {
         .to_string();
     assert!(err.contains("no/such/scene.toml"), "{err}");
 }
+
+/// BASE without the bond (its δ_eq needs a reference radius with generated beds), plus an
+/// insertion, an import and a deposition (valid; the import file is read only when built).
+fn bed_base() -> String {
+    let start = BASE.find("[bond]").unwrap();
+    let end = BASE.find("[[particles]]").unwrap();
+    format!(
+        "{}{}",
+        &BASE[..start],
+        &BASE[end..].replacen(
+            "[[walls]]",
+            "[[insert]]\nmin_corner_m = [0.0, 0.0, 3e-4]\nmax_corner_m = [4e-4, 4e-4, 6e-4]\n\
+             count = 100\nseed = 1\nmaterial = \"steel\"\n[insert.size]\ndistribution = \"lognormal\"\n\
+             d10_m = 2e-5\nd50_m = 3e-5\nd90_m = 4.5e-5\nmin_m = 1.5e-5\nmax_m = 6e-5\n\
+             [[import]]\nfile = \"data/bed.dump.gz\"\nformat = \"liggghts_dump\"\nmaterial = \"steel\"\n\
+             [deposition]\nmax_duration_s = 0.05\n[[walls]]",
+            1,
+        )
+    )
+}
+
+/// Bed-generation cases, applied to [`bed_base`].
+const BED_CASES: &[(&str, &str, &[&str])] = &[
+    (
+        "distribution = \"lognormal\"",
+        "distribution = \"weibull\"",
+        &["insert[0].size.distribution", "unknown variant `weibull`"],
+    ),
+    (
+        "count = 100",
+        "count = 100\nsolid_fraction = 0.3",
+        &["insert[0].solid_fraction = 0.3: give either count or solid_fraction, not both"],
+    ),
+    (
+        "count = 100",
+        "",
+        &["insert[0] = neither count nor solid_fraction: give one of them"],
+    ),
+    (
+        "count = 100",
+        "solid_fraction = 0.9",
+        &["insert[0].solid_fraction = 0.9: must be in (0, 0.74]"],
+    ),
+    (
+        "d50_m = 3e-5",
+        "d50_m = 5e-5",
+        &[
+            "insert[0].size.d50_m = 0.00005 (d10_m = 0.00002, d90_m = 0.000045): must satisfy d10_m < d50_m < d90_m",
+        ],
+    ),
+    (
+        "d90_m = 4.5e-5",
+        "",
+        &["insert[0].size.d90_m = missing: d10_m, d50_m and d90_m go together"],
+    ),
+    (
+        "d10_m = 2e-5",
+        "mean_m = 3e-5\nd10_m = 2e-5",
+        &["insert[0].size.mean_m = given together with d10_m/d50_m/d90_m"],
+    ),
+    (
+        "max_m = 6e-5",
+        "max_m = 1.2e-5",
+        &["insert[0].size.max_m = 0.000012: must be > min_m = 0.000015"],
+    ),
+    (
+        "min_m = 1.5e-5\nmax_m = 6e-5",
+        "min_m = 1e-4",
+        &[
+            "insert[0].size = min_m = Some(0.0001), max_m = None",
+            "of the distribution lies in [min_m, max_m]",
+        ],
+    ),
+    (
+        "distribution = \"lognormal\"",
+        "distribution = \"constant\"",
+        &[
+            "insert[0].size.diameter_m = missing",
+            "insert[0].size.d10_m = 0.00002: not used with distribution = \"constant\"",
+        ],
+    ),
+    (
+        "max_corner_m = [4e-4, 4e-4, 6e-4]",
+        "max_corner_m = [4e-4, 4e-4, 2e-4]",
+        &["insert[0].max_corner_m = [0.0004, 0.0004, 0.0002]: must exceed min_corner_m"],
+    ),
+    (
+        "format = \"liggghts_dump\"",
+        "format = \"xyz\"",
+        &[
+            "import[0].format",
+            "unknown variant `xyz`",
+            "`csv`, `liggghts_dump`, `am_sim_h5`",
+        ],
+    ),
+    (
+        "format = \"liggghts_dump\"\nmaterial = \"steel\"",
+        "format = \"liggghts_dump\"",
+        &["import[0].material = missing: needed: only a CSV file can name materials"],
+    ),
+    (
+        "format = \"liggghts_dump\"",
+        "format = \"liggghts_dump\"\nframe = 3\nscale = 0",
+        &[
+            "import[0].frame = 3: only used with format = \"am_sim_h5\"",
+            "import[0].scale = 0: must be > 0",
+        ],
+    ),
+    (
+        "max_duration_s = 0.05",
+        "max_duration_s = 0.05\nkinetic_energy_ratio = -1\ncheck_every_steps = 0",
+        &[
+            "deposition.kinetic_energy_ratio = -1: must be > 0",
+            "deposition.check_every_steps = 0: must be ≥ 1",
+        ],
+    ),
+    (
+        "gravity_m_s2 = [0.0, 0.0, -9.81]",
+        "gravity_m_s2 = [0.0, 0.0, 0.0]",
+        &["deposition = [deposition]: needs simulation.gravity_m_s2 ≠ 0"],
+    ),
+    (
+        "max_duration_s = 0.05",
+        "max_duration_s = 0.05\ntimeout = 1",
+        &["deposition.timeout", "unknown field"],
+    ),
+];
+
+#[test]
+fn every_bad_bed_generation_scene_is_rejected_with_key_value_and_reason() {
+    Scene::from_toml(&bed_base()).expect("bed base scene");
+    check_cases(&bed_base(), BED_CASES);
+}
+
+#[test]
+fn a_bond_overlap_with_generated_radii_needs_a_reference_radius() {
+    let text = BASE.replacen(
+        "[[walls]]",
+        "[[insert]]\nmin_corner_m = [0.0, 0.0, 3e-4]\nmax_corner_m = [4e-4, 4e-4, 6e-4]\ncount = 10\n\
+         material = \"steel\"\n[insert.size]\ndistribution = \"constant\"\ndiameter_m = 3e-5\n[[walls]]",
+        1,
+    );
+    let message = Scene::from_toml(&text).unwrap_err().to_string();
+    assert!(
+        message.contains(
+            "bond.reference_radius_m = missing: the radii of [[insert]] and [[import]] particles"
+        ),
+        "{message}"
+    );
+}

@@ -677,3 +677,71 @@ fn string_attr(location: &hdf5::Location, name: &str, value: &str) -> hdf5::Resu
         .create(name)?
         .write_scalar(&value)
 }
+
+/// The particles of one frame (for `[[import]] format = "am_sim_h5"`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameParticles {
+    /// Frame number (`/frames/NNNNNN`).
+    pub frame: usize,
+    /// Particle ids, in row order.
+    pub id: Vec<u64>,
+    /// Positions [m].
+    pub position: Vec<DVec3>,
+    /// Velocities [m/s].
+    pub velocity: Vec<DVec3>,
+    /// Radii [m].
+    pub radius: Vec<f64>,
+}
+
+/// Reads ids, positions, velocities and radii of frame number `frame`, or of the last complete
+/// frame when `None`.
+///
+/// # Errors
+/// HDF5 errors, or [`OutputError::Format`] if the frame does not exist or is incomplete.
+pub fn read_frame_particles(path: &Path, frame: Option<usize>) -> Result<FrameParticles> {
+    let file = File::open(path).on(path)?;
+    check_format(&file, path)?;
+    let frames = file.group("frames").on(path)?;
+    let names = frame_names(&frames).on(path)?;
+    let bad = |message: String| OutputError::Format {
+        path: path.to_path_buf(),
+        message,
+    };
+    let complete = |name: &String| frames.group(name).is_ok_and(|g| frame_is_complete(&g));
+    let (index, name) = match frame {
+        None => names
+            .iter()
+            .enumerate()
+            .rev()
+            .find(|(_, n)| complete(n))
+            .ok_or_else(|| bad("no complete frame".into()))?,
+        Some(k) => names
+            .iter()
+            .enumerate()
+            .find(|(_, n)| n.parse::<usize>().ok() == Some(k) && complete(n))
+            .ok_or_else(|| {
+                bad(format!(
+                    "no complete frame {k}; the file has frames 0 to {}",
+                    names.len().saturating_sub(1)
+                ))
+            })?,
+    };
+    let group = frames.group(name).on(path)?;
+    let read = || -> hdf5::Result<FrameParticles> {
+        let vec3 = |ds: Dataset| -> hdf5::Result<Vec<DVec3>> {
+            Ok(ds
+                .read_raw::<f64>()?
+                .chunks_exact(3)
+                .map(|c| DVec3::new(c[0], c[1], c[2]))
+                .collect())
+        };
+        Ok(FrameParticles {
+            frame: index,
+            id: group.dataset("id")?.read_raw()?,
+            position: vec3(group.dataset("position")?)?,
+            velocity: vec3(group.dataset("velocity")?)?,
+            radius: group.dataset("radius")?.read_raw()?,
+        })
+    };
+    read().on(path)
+}

@@ -39,6 +39,18 @@ pub struct Scene {
     /// `[[lattice]]`: particles generated on a simple cubic lattice in a box.
     #[serde(default)]
     pub lattice: Vec<LatticeConfig>,
+    /// `[[import]]`: particles read from a file.
+    #[serde(default)]
+    pub import: Vec<ImportConfig>,
+    /// `[[insert]]`: spheres of a size distribution placed at random, without overlaps, in a box.
+    #[serde(default)]
+    pub insert: Vec<InsertConfig>,
+    /// `[deposition]`: let the particles settle under gravity before the run.
+    pub deposition: Option<DepositionConfig>,
+    /// Folder of the scene file: `[[import]]` files are relative to it (the working directory
+    /// for scenes given as text).
+    #[serde(skip)]
+    pub base_dir: std::path::PathBuf,
     /// `[[walls]]`: infinite planes.
     #[serde(default)]
     pub walls: Vec<WallConfig>,
@@ -258,6 +270,120 @@ pub struct LatticeConfig {
     pub material: String,
 }
 
+/// `[[insert]]`: spheres with diameters drawn from `[insert.size]`, placed one by one (largest
+/// first) at uniformly random positions in a box, none overlapping another or a particle of an
+/// earlier source. Give `count` or `solid_fraction`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InsertConfig {
+    /// Lower corner of the box [m]; every sphere lies fully inside it.
+    pub min_corner_m: [f64; 3],
+    /// Upper corner of the box [m].
+    pub max_corner_m: [f64; 3],
+    /// Number of spheres, `≥ 1`.
+    pub count: Option<u64>,
+    /// Solid volume fraction of the box to fill, in `(0, 0.74]`: diameters are drawn until
+    /// their volume reaches it (random sequential addition jams near 0.38).
+    pub solid_fraction: Option<f64>,
+    /// `[insert.size]`: the distribution of diameters.
+    pub size: SizeConfig,
+    /// Seed of the random sizes and positions (the same seed gives the same bed).
+    #[serde(default)]
+    pub seed: u64,
+    /// Velocity of every sphere [m/s]; default at rest.
+    #[serde(default)]
+    pub velocity_m_s: [f64; 3],
+    /// Name of a `[materials.NAME]` table.
+    pub material: String,
+}
+
+/// Families of size distributions.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum DistributionKind {
+    /// One diameter, `diameter_m`.
+    Constant,
+    /// Normal in D.
+    Normal,
+    /// Normal in ln D.
+    Lognormal,
+}
+
+/// `[insert.size]`: a distribution of **diameters** (not radii), as powder data sheets give
+/// them. `constant` takes `diameter_m`; `normal` and `lognormal` take either `mean_m` and
+/// `std_m` (of D) or `d10_m`, `d50_m` and `d90_m`; all may be truncated to `[min_m, max_m]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SizeConfig {
+    /// The family.
+    pub distribution: DistributionKind,
+    /// Diameter of a `constant` distribution [m].
+    pub diameter_m: Option<f64>,
+    /// Mean diameter [m].
+    pub mean_m: Option<f64>,
+    /// Standard deviation of the diameter [m].
+    pub std_m: Option<f64>,
+    /// 10 % of the particles (by number) are smaller [m].
+    pub d10_m: Option<f64>,
+    /// Median diameter [m].
+    pub d50_m: Option<f64>,
+    /// 90 % of the particles (by number) are smaller [m].
+    pub d90_m: Option<f64>,
+    /// Smallest diameter kept [m]; smaller draws are redrawn (truncation, not clamping).
+    pub min_m: Option<f64>,
+    /// Largest diameter kept [m]; larger draws are redrawn.
+    pub max_m: Option<f64>,
+}
+
+/// File formats of `[[import]]`.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ImportFormat {
+    /// am-sim particle CSV (header `x_m,y_m,z_m,radius_m[,vx_m_s,vy_m_s,vz_m_s,id,material]`).
+    Csv,
+    /// LIGGGHTS/LAMMPS `dump custom` text.
+    LiggghtsDump,
+    /// A frame of an am-sim HDF5 output file.
+    AmSimH5,
+}
+
+/// `[[import]]`: particles read from a file (x' = scale·x + shift, r' = scale·r, v' = scale·v).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImportConfig {
+    /// The file, relative to the scene file's folder; `.gz` text files are decompressed.
+    pub file: String,
+    /// Its format.
+    pub format: ImportFormat,
+    /// `am_sim_h5`: frame number to read; default the last complete frame.
+    pub frame: Option<usize>,
+    /// `liggghts_dump`: timestep of the snapshot to read; default the last snapshot.
+    pub timestep: Option<u64>,
+    /// Material of the particles (required unless every CSV row names one).
+    pub material: Option<String>,
+    /// Factor on positions, radii and velocities (e.g. 1e-3 for a file in mm); default 1.
+    pub scale: Option<f64>,
+    /// Added to every position after scaling [m]; default none.
+    #[serde(default)]
+    pub shift_m: [f64; 3],
+}
+
+/// `[deposition]`: before the run, the particles fall under gravity with the laser off until
+/// the mean kinetic energy per particle is at most `kinetic_energy_ratio` × m̄ g d̄ (M.75).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DepositionConfig {
+    /// Deposition time after which an unsettled bed stops the run with an error [s], `> 0`.
+    pub max_duration_s: f64,
+    /// Settling threshold, `> 0`; default 1e-4.
+    pub kinetic_energy_ratio: Option<f64>,
+    /// Steps between checks of the criterion, `≥ 1`; default 1000.
+    pub check_every_steps: Option<u64>,
+    /// Background damping during deposition (M.76): velocities decay as exp(−t/τ) besides the
+    /// contacts' damping [s], `> 0`; default none. Frictionless spheres need it to come to rest.
+    pub damping_time_s: Option<f64>,
+}
+
 /// `[[walls]]`: an infinite plane; particles stay on the side the normal points to.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -306,7 +432,9 @@ impl Scene {
             path: path.to_owned(),
             source,
         })?;
-        Self::from_toml(&text).map_err(|e| e.in_file(path))
+        let mut scene = Self::from_toml(&text).map_err(|e| e.in_file(path))?;
+        scene.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Ok(scene)
     }
 
     /// Parses and validates scene text.

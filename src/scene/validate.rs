@@ -1,7 +1,11 @@
 //! Second phase of scene loading: ranges and cross-field rules on the deserialized [`Scene`].
 //! Every violation is collected (not just the first), each naming key, value and reason.
 
-use super::{FORMAT_VERSION, Scene, Violation};
+use super::{
+    DepositionConfig, DistributionKind, FORMAT_VERSION, ImportConfig, ImportFormat, InsertConfig,
+    Scene, SizeConfig, Violation,
+};
+use crate::bed::psd::{Psd, Shape};
 
 /// Largest number of particles a scene may generate (guards against a unit slip in a lattice box).
 pub const MAX_PARTICLES: u64 = 100_000_000;
@@ -164,8 +168,18 @@ pub fn validate(scene: &Scene) -> Vec<Violation> {
     for k in 0..scene.lattice.len() {
         total = total.saturating_add(validate_lattice(&mut c, scene, k));
     }
+    for (k, insert) in scene.insert.iter().enumerate() {
+        total = total.saturating_add(validate_insert(&mut c, scene, k, insert));
+    }
+    for (k, import) in scene.import.iter().enumerate() {
+        validate_import(&mut c, scene, k, import);
+    }
+    if let Some(deposition) = &scene.deposition {
+        validate_deposition(&mut c, scene, deposition);
+    }
     // A lattice with a bad key counts no sites: do not add a misleading "no particles" on top.
-    if total == 0 && c.violations.len() == before_lattices {
+    // Imported files are read when the scene is built; their particle count is not known here.
+    if total == 0 && c.violations.len() == before_lattices && scene.import.is_empty() {
         c.fail("particles", "[]", "the scene has no particles: add [[particles]] or a [[lattice]] that fits at least one sphere");
     }
     if total > MAX_PARTICLES {
@@ -256,6 +270,11 @@ fn validate_bond(c: &mut Checker, scene: &Scene, bond: &super::BondConfig) {
             "bond.reference_radius_m",
             r,
             "only used with bond.equilibrium_overlap_m",
+        ),
+        (None, Some(_)) if !scene.insert.is_empty() || !scene.import.is_empty() => c.fail(
+            "bond.reference_radius_m",
+            "missing",
+            "the radii of [[insert]] and [[import]] particles are known only when the scene is built: say for which sphere radius equilibrium_overlap_m holds",
         ),
         (None, Some(_)) => {
             let radii = all_radii(scene);
@@ -649,5 +668,285 @@ fn validate_output(c: &mut Checker, scene: &Scene, out: &super::OutputConfig) {
                 "needs \"bonds\" in the list too (its rows follow the bond list)",
             );
         }
+    }
+}
+
+/// Smallest probability that a diameter drawn from an untruncated distribution falls inside
+/// `[min_m, max_m]`: below it, truncation by redrawing would take over 1000 draws per sphere.
+pub const MIN_KEPT_FRACTION: f64 = 1e-3;
+
+/// The diameter distribution of `[insert.size]`, or `None` if its keys do not define one
+/// (`validate` reports why).
+#[must_use]
+pub fn size_distribution(size: &SizeConfig) -> Option<Psd> {
+    let shape = match size.distribution {
+        DistributionKind::Constant => return size.diameter_m.map(Psd::constant),
+        DistributionKind::Normal => Shape::Normal,
+        DistributionKind::Lognormal => Shape::LogNormal,
+    };
+    let psd = match (size.mean_m, size.std_m, size.d10_m, size.d50_m, size.d90_m) {
+        (Some(mean), Some(std), None, None, None) if shape == Shape::Normal => {
+            Psd::normal(mean, std)
+        }
+        (Some(mean), Some(std), None, None, None) => Psd::lognormal_from_moments(mean, std),
+        (None, None, Some(d10), Some(d50), Some(d90)) => Psd::from_quantiles(shape, d10, d50, d90),
+        _ => return None,
+    };
+    Some(psd.truncated(
+        size.min_m.unwrap_or(0.0),
+        size.max_m.unwrap_or(f64::INFINITY),
+    ))
+}
+
+fn validate_size(c: &mut Checker, prefix: &str, size: &SizeConfig) -> Option<Psd> {
+    let key = |field: &str| format!("{prefix}.{field}");
+    let before = c.violations.len();
+    let given = |v: Option<f64>| v.is_some();
+    if size.distribution == DistributionKind::Constant {
+        match size.diameter_m {
+            Some(d) => c.positive(&key("diameter_m"), d),
+            None => c.fail(
+                key("diameter_m"),
+                "missing",
+                "needed by distribution = \"constant\"",
+            ),
+        }
+        for (field, value) in [
+            ("mean_m", size.mean_m),
+            ("std_m", size.std_m),
+            ("d10_m", size.d10_m),
+            ("d50_m", size.d50_m),
+            ("d90_m", size.d90_m),
+            ("min_m", size.min_m),
+            ("max_m", size.max_m),
+        ] {
+            if let Some(v) = value {
+                c.fail(
+                    key(field),
+                    v,
+                    "not used with distribution = \"constant\" (give diameter_m)",
+                );
+            }
+        }
+        return (c.violations.len() == before)
+            .then(|| size_distribution(size))
+            .flatten();
+    }
+    if let Some(d) = size.diameter_m {
+        c.fail(
+            key("diameter_m"),
+            d,
+            "only used with distribution = \"constant\"",
+        );
+    }
+    let moments = given(size.mean_m) || given(size.std_m);
+    let quantiles = given(size.d10_m) || given(size.d50_m) || given(size.d90_m);
+    if moments && quantiles {
+        c.fail(
+            key("mean_m"),
+            "given together with d10_m/d50_m/d90_m",
+            "give either mean_m and std_m or d10_m, d50_m and d90_m",
+        );
+    } else if moments {
+        for (field, value) in [("mean_m", size.mean_m), ("std_m", size.std_m)] {
+            match value {
+                Some(v) => c.positive(&key(field), v),
+                None => c.fail(key(field), "missing", "mean_m and std_m go together"),
+            }
+        }
+    } else if quantiles {
+        for (field, value) in [
+            ("d10_m", size.d10_m),
+            ("d50_m", size.d50_m),
+            ("d90_m", size.d90_m),
+        ] {
+            match value {
+                Some(v) => c.positive(&key(field), v),
+                None => c.fail(key(field), "missing", "d10_m, d50_m and d90_m go together"),
+            }
+        }
+        if let (Some(d10), Some(d50), Some(d90)) = (size.d10_m, size.d50_m, size.d90_m) {
+            if !(d10 < d50 && d50 < d90) {
+                c.fail(
+                    key("d50_m"),
+                    format!("{d50} (d10_m = {d10}, d90_m = {d90})"),
+                    "must satisfy d10_m < d50_m < d90_m",
+                );
+            }
+        }
+    } else {
+        c.fail(
+            prefix,
+            "no size keys",
+            "give mean_m and std_m, or d10_m, d50_m and d90_m (diameters)",
+        );
+    }
+    if let Some(min) = size.min_m {
+        c.non_negative(&key("min_m"), min);
+    }
+    if let Some(max) = size.max_m {
+        c.positive(&key("max_m"), max);
+        if let Some(min) = size.min_m {
+            if min >= max {
+                c.fail(key("max_m"), max, format!("must be > min_m = {min}"));
+            }
+        }
+    }
+    if c.violations.len() > before {
+        return None;
+    }
+    let psd = size_distribution(size)?;
+    let kept = psd.kept_fraction();
+    if kept.is_nan() || kept < MIN_KEPT_FRACTION {
+        c.fail(
+            prefix,
+            format!("min_m = {:?}, max_m = {:?}", size.min_m, size.max_m),
+            format!(
+                "only a fraction {kept:.3e} of the distribution lies in [min_m, max_m] (and above 0): widen the range (at least {MIN_KEPT_FRACTION})"
+            ),
+        );
+        return None;
+    }
+    Some(psd)
+}
+
+/// Checks one `[[insert]]`; returns its (estimated, for `solid_fraction`) particle count.
+fn validate_insert(c: &mut Checker, scene: &Scene, k: usize, insert: &InsertConfig) -> u64 {
+    let key = |field: &str| format!("insert[{k}].{field}");
+    let before = c.violations.len();
+    c.finite_vector(&key("min_corner_m"), insert.min_corner_m);
+    c.finite_vector(&key("max_corner_m"), insert.max_corner_m);
+    c.finite_vector(&key("velocity_m_s"), insert.velocity_m_s);
+    c.material(scene, &key("material"), &insert.material);
+    if c.violations.len() == before
+        && (0..3).any(|a| insert.max_corner_m[a] <= insert.min_corner_m[a])
+    {
+        c.fail(
+            key("max_corner_m"),
+            format!("{:?}", insert.max_corner_m),
+            format!(
+                "must exceed min_corner_m = {:?} along every axis",
+                insert.min_corner_m
+            ),
+        );
+    }
+    let psd = validate_size(c, &key("size"), &insert.size);
+    match (insert.count, insert.solid_fraction) {
+        (Some(_), Some(f)) => c.fail(
+            key("solid_fraction"),
+            f,
+            "give either count or solid_fraction, not both",
+        ),
+        (None, None) => c.fail(
+            format!("insert[{k}]"),
+            "neither count nor solid_fraction",
+            "give one of them",
+        ),
+        (Some(0), None) => c.fail(key("count"), 0, "must be ≥ 1"),
+        (None, Some(f)) => {
+            if c.finite(&key("solid_fraction"), f) && !(f > 0.0 && f <= 0.74) {
+                c.fail(
+                    key("solid_fraction"),
+                    f,
+                    "must be in (0, 0.74] (0.74: the densest packing of equal spheres)",
+                );
+            }
+        }
+        (Some(_), None) => {}
+    }
+    if c.violations.len() > before {
+        return 0;
+    }
+    match (insert.count, insert.solid_fraction, psd) {
+        (Some(n), _, _) => n,
+        (None, Some(f), Some(psd)) => {
+            let volume: f64 = (0..3)
+                .map(|a| insert.max_corner_m[a] - insert.min_corner_m[a])
+                .product();
+            let median = psd.quantile(0.5);
+            let estimate = f * volume / (std::f64::consts::PI / 6.0 * median.powi(3));
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let count = estimate.min(1e18) as u64;
+            count.max(1)
+        }
+        _ => 0,
+    }
+}
+
+fn validate_import(c: &mut Checker, scene: &Scene, k: usize, import: &ImportConfig) {
+    let key = |field: &str| format!("import[{k}].{field}");
+    if import.file.is_empty() {
+        c.fail(key("file"), "\"\"", "must be a file name");
+    }
+    if let Some(frame) = import.frame {
+        if import.format != ImportFormat::AmSimH5 {
+            c.fail(key("frame"), frame, "only used with format = \"am_sim_h5\"");
+        }
+    }
+    if let Some(step) = import.timestep {
+        if import.format != ImportFormat::LiggghtsDump {
+            c.fail(
+                key("timestep"),
+                step,
+                "only used with format = \"liggghts_dump\"",
+            );
+        }
+    }
+    match &import.material {
+        Some(name) => c.material(scene, &key("material"), name),
+        None if import.format != ImportFormat::Csv => c.fail(
+            key("material"),
+            "missing",
+            "needed: only a CSV file can name materials (column `material`)",
+        ),
+        None => {}
+    }
+    if let Some(scale) = import.scale {
+        c.positive(&key("scale"), scale);
+    }
+    c.finite_vector(&key("shift_m"), import.shift_m);
+    if cfg!(not(feature = "hdf5")) && import.format == ImportFormat::AmSimH5 {
+        c.fail(
+            key("format"),
+            "\"am_sim_h5\"",
+            "this am-sim was built without HDF5 (cargo feature `hdf5`)",
+        );
+    }
+}
+
+fn validate_deposition(c: &mut Checker, scene: &Scene, deposition: &DepositionConfig) {
+    c.positive("deposition.max_duration_s", deposition.max_duration_s);
+    let dt = scene.simulation.dt_s;
+    if dt > 0.0 && deposition.max_duration_s / dt > MAX_STEPS {
+        c.fail(
+            "deposition.max_duration_s",
+            deposition.max_duration_s,
+            format!(
+                "gives more than {MAX_STEPS:e} steps of dt_s = {dt}: check the units (seconds)"
+            ),
+        );
+    }
+    if let Some(ratio) = deposition.kinetic_energy_ratio {
+        c.positive("deposition.kinetic_energy_ratio", ratio);
+    }
+    if let Some(tau) = deposition.damping_time_s {
+        c.positive("deposition.damping_time_s", tau);
+    }
+    if deposition.check_every_steps == Some(0) {
+        c.fail("deposition.check_every_steps", 0, "must be ≥ 1");
+    }
+    if scene.simulation.gravity_m_s2.iter().all(|g| *g == 0.0) {
+        c.fail(
+            "deposition",
+            "[deposition]",
+            "needs simulation.gravity_m_s2 ≠ 0: particles settle under gravity",
+        );
+    }
+    if scene.walls.is_empty() {
+        c.fail(
+            "deposition",
+            "[deposition]",
+            "needs a [[walls]] plane for the particles to settle on",
+        );
     }
 }

@@ -1,0 +1,150 @@
+//! Bed generation through the `am-sim` binary: `[[import]]` paths resolve from the scene file's
+//! folder, `[deposition]` settles the bed before the run and the run's clock starts on the
+//! settled bed, and an unsettled bed stops the run with an error.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn am_sim(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_am-sim"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("am-sim runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// 40 spheres: 10 from `spheres.csv` resting in the lower part of a 5 × 5 d box, 30 inserted
+/// above them; they settle on the plate, then 100 steps run with a series row every 10.
+fn scene(max_duration_s: f64) -> String {
+    format!(
+        r#"
+[scene]
+version = 1
+[simulation]
+dt_s = 1e-7
+duration_s = 1e-5
+gravity_m_s2 = [0.0, 0.0, -9.81]
+[materials.steel]
+density_kg_m3 = 7950
+youngs_modulus_pa = 2e8
+poisson_ratio = 0.3
+[contact]
+model = "hertz"
+damping_ratio = 0.5
+[[import]]
+file = "data/spheres.csv"
+format = "csv"
+material = "steel"
+[[insert]]
+min_corner_m = [0.0, 0.0, 0.0]
+max_corner_m = [1.5e-4, 1.5e-4, 2e-4]
+count = 30
+seed = 3
+material = "steel"
+[insert.size]
+distribution = "constant"
+diameter_m = 3e-5
+[deposition]
+max_duration_s = {max_duration_s}
+damping_time_s = 3e-3
+[output]
+series_csv = "series.csv"
+series_every_steps = 10
+[[walls]]
+point_m = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+material = "steel"
+[[walls]]
+point_m = [0.0, 0.0, 0.0]
+normal = [1.0, 0.0, 0.0]
+material = "steel"
+[[walls]]
+point_m = [1.5e-4, 0.0, 0.0]
+normal = [-1.0, 0.0, 0.0]
+material = "steel"
+[[walls]]
+point_m = [0.0, 0.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+material = "steel"
+[[walls]]
+point_m = [0.0, 1.5e-4, 0.0]
+normal = [0.0, -1.0, 0.0]
+material = "steel"
+"#
+    )
+}
+
+/// Writes the scene and its CSV into `scenes/` (the CSV under `scenes/data/`) below `root`.
+fn write_scene(root: &Path, max_duration_s: f64) -> String {
+    let scenes = root.join("scenes");
+    std::fs::create_dir_all(scenes.join("data")).unwrap();
+    let mut csv = String::from("x_m,y_m,z_m,radius_m\n");
+    for k in 0..10 {
+        let (i, j) = (f64::from(k % 5), f64::from(k / 5));
+        csv += &format!("{},{},2e-5,1.5e-5\n", 1.5e-5 + 3e-5 * i, 1.5e-5 + 3e-5 * j);
+    }
+    std::fs::write(scenes.join("data/spheres.csv"), csv).unwrap();
+    let path = scenes.join("deposit.toml");
+    std::fs::write(&path, scene(max_duration_s)).unwrap();
+    path.to_string_lossy().into_owned()
+}
+
+#[test]
+fn the_run_starts_on_the_settled_bed() {
+    let root = tempfile::tempdir().unwrap();
+    let path = write_scene(root.path(), 0.1);
+    // Run from another folder: the import resolves from the scene's, the output from the cwd.
+    let cwd = tempfile::tempdir().unwrap();
+    let out = am_sim(cwd.path(), &[&path, "--threads", "1", "-q"]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", text(&out.stderr));
+    assert!(stdout.contains("40 particles"), "{stdout}");
+    assert!(
+        stdout.contains("settled; the run starts now (t = 0)"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("done: 100 steps"), "{stdout}");
+    let series = std::fs::read_to_string(cwd.path().join("series.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = series
+        .lines()
+        .skip(1)
+        .map(|l| {
+            l.split(',')
+                .map(|c| c.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect();
+    let header: Vec<&str> = series.lines().next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (step, time, kinetic) = (column("step"), column("time_s"), column("kinetic_energy_j"));
+    // Rows at steps 0, 10, …, 100 of the run proper: the deposition's steps are not counted.
+    assert_eq!(rows.len(), 11);
+    assert_eq!((rows[0][step], rows[0][time]), (0.0, 0.0));
+    assert_eq!(rows[10][step], 100.0);
+    // Settled: E_kin per particle ≤ 1e-4 m g d (M.75) with m = ρ π d³/6, d = 30 µm.
+    let m = 7950.0 * std::f64::consts::PI / 6.0 * 3e-5_f64.powi(3);
+    assert!(
+        rows[0][kinetic] / 40.0 <= 1e-4 * m * 9.81 * 3e-5,
+        "{}",
+        rows[0][kinetic]
+    );
+}
+
+#[test]
+fn a_bed_that_does_not_settle_in_time_stops_the_run() {
+    let root = tempfile::tempdir().unwrap();
+    // 1 ms: the inserted spheres are still falling (free fall over 0.2 mm takes 6 ms).
+    let path = write_scene(root.path(), 1e-3);
+    let out = am_sim(root.path(), &[&path, "--threads", "1", "-q"]);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("deposition: 10000 steps")
+            && stderr.contains("not settled within deposition.max_duration_s"),
+        "{stderr}"
+    );
+}

@@ -1,0 +1,298 @@
+//! `[[import]]`: particles read back from am-sim's CSV, LIGGGHTS dumps (plain and gzip) and
+//! am-sim HDF5 frames are bit for bit the ones written; the shipped LIGGGHTS start configuration
+//! has the benchmark's 19,200 spheres of r = 15 µm; bad files give errors naming key, file and line.
+
+use std::path::Path;
+
+use am_sim::bed::import::{parse_csv, parse_liggghts_dump, write_csv};
+use am_sim::model::Model;
+use am_sim::particles::Particles;
+use am_sim::scene::Scene;
+use glam::DVec3;
+
+const HEAD: &str = r#"
+[scene]
+version = 1
+[simulation]
+dt_s = 1e-7
+duration_s = 1e-6
+gravity_m_s2 = [0.0, 0.0, -9.81]
+[materials.steel]
+density_kg_m3 = 7950
+youngs_modulus_pa = 2e8
+poisson_ratio = 0.3
+[materials.glass]
+density_kg_m3 = 2500
+youngs_modulus_pa = 1e8
+poisson_ratio = 0.25
+[contact]
+model = "hertz"
+damping_ratio = 0.5
+"#;
+
+/// Writes `scene.toml` with `body` into `dir` and builds it (relative files resolve from `dir`).
+fn build_in(dir: &Path, body: &str) -> Result<Particles, String> {
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, format!("{HEAD}{body}")).unwrap();
+    let scene = Scene::load(&path).map_err(|e| e.to_string())?;
+    Model::try_build(&scene)
+        .map(|(_, p)| p)
+        .map_err(|e| e.in_file(&path).to_string())
+}
+
+/// A few hundred particles with awkward values (random bits, tiny and negative numbers).
+fn sample_particles() -> Particles {
+    let text = format!(
+        "{HEAD}
+[[insert]]
+min_corner_m = [-1e-4, 0.0, 1e-5]
+max_corner_m = [3e-4, 2e-4, 2e-4]
+count = 300
+seed = 99
+velocity_m_s = [1e-3, -2.5e-17, 0.1]
+material = \"steel\"
+[insert.size]
+distribution = \"lognormal\"
+mean_m = 2e-5
+std_m = 5e-6
+"
+    );
+    let scene = Scene::from_toml(&text).unwrap();
+    Model::try_build(&scene).unwrap().1
+}
+
+#[test]
+fn csv_round_trip_is_exact() {
+    let p = sample_particles();
+    let text = write_csv(&p.id, &p.position, &p.velocity, &p.radius);
+    let rows = parse_csv(&text).unwrap();
+    assert_eq!(rows.len(), p.len());
+    for (k, row) in rows.iter().enumerate() {
+        assert_eq!(row.id, Some(p.id[k]));
+        assert_eq!(row.position, p.position[k]);
+        assert_eq!(row.velocity, p.velocity[k]);
+        assert_eq!(row.radius, p.radius[k]);
+    }
+
+    // Through a scene: a file beside it, relative path, scaled by 1 and not shifted.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("bed.csv"), &text).unwrap();
+    let imported = build_in(
+        dir.path(),
+        "[[import]]\nfile = \"bed.csv\"\nformat = \"csv\"\nmaterial = \"steel\"\n",
+    )
+    .unwrap();
+    assert_eq!(imported.position, p.position);
+    assert_eq!(imported.velocity, p.velocity);
+    assert_eq!(imported.radius, p.radius);
+    assert_eq!(imported.mass, p.mass);
+}
+
+#[test]
+fn csv_columns_in_any_order_with_materials_ids_and_comments() {
+    let text = "# made by hand\nmaterial, radius_m, z_m, y_m, x_m, id\n\
+                glass, 1e-5, 3e-5, 2e-5, 1e-5, 7\n\n# a comment row\nsteel, 2e-5, 6e-5, 0, 0, 3\n";
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("hand.csv"), text).unwrap();
+    // Millimetres in the file: scale 1e-3 on positions and radii, then a shift.
+    let p = build_in(
+        dir.path(),
+        "[[import]]\nfile = \"hand.csv\"\nformat = \"csv\"\nscale = 1e3\nshift_m = [0.0, 0.0, 1.0]\n",
+    )
+    .unwrap();
+    // Sorted by file id: id 3 (steel) first.
+    assert_eq!(p.len(), 2);
+    assert_eq!(p.radius, vec![2e-5 * 1e3, 1e-5 * 1e3]);
+    assert_eq!(p.position[0], DVec3::new(0.0, 0.0, 6e-5 * 1e3 + 1.0));
+    assert_eq!(
+        p.position[1],
+        DVec3::new(1e-5 * 1e3, 2e-5 * 1e3, 3e-5 * 1e3 + 1.0)
+    );
+    assert_eq!(
+        p.material,
+        vec![1, 0],
+        "BTreeMap order: glass = 0, steel = 1"
+    );
+    assert_eq!(p.velocity, vec![DVec3::ZERO; 2]);
+}
+
+/// A dump with two snapshots, unsorted ids and columns LIGGGHTS adds (type, mass, forces).
+const DUMP: &str = "ITEM: TIMESTEP
+100
+ITEM: NUMBER OF ATOMS
+2
+ITEM: BOX BOUNDS pp pp ff
+0 1e-3
+0 1e-3
+0 1e-3
+ITEM: ATOMS id type x y z vx vy vz fx radius
+2 1 1e-4 2e-4 3e-4 0 0 0 0 1.5e-5
+1 1 4e-4 5e-4 6e-4 0 0 0 0 1.5e-5
+ITEM: TIMESTEP
+200
+ITEM: NUMBER OF ATOMS
+3
+ITEM: BOX BOUNDS pp pp ff
+0 1e-3
+0 1e-3
+0 1e-3
+ITEM: ATOMS id type x y z vx vy vz fx radius
+9 1 7e-4 8e-4 9e-4 1 2 3 0 2e-5
+2 1 1.5e-4 2e-4 3e-4 -1 0 0 0 1.5e-5
+5 1 4e-4 5e-4 6e-4 0 0 0 0 1.5e-5
+";
+
+#[test]
+fn a_liggghts_dump_gives_its_last_or_the_chosen_snapshot_sorted_by_id() {
+    let last = parse_liggghts_dump(DUMP, None).unwrap();
+    assert_eq!(last.timestep, 200);
+    let ids: Vec<Option<u64>> = last.particles.iter().map(|p| p.id).collect();
+    assert_eq!(ids, [Some(2), Some(5), Some(9)]);
+    assert_eq!(last.particles[2].position, DVec3::new(7e-4, 8e-4, 9e-4));
+    assert_eq!(last.particles[2].velocity, DVec3::new(1.0, 2.0, 3.0));
+    assert_eq!(last.particles[2].radius, 2e-5);
+    let first = parse_liggghts_dump(DUMP, Some(100)).unwrap();
+    assert_eq!(first.particles.len(), 2);
+    assert_eq!(first.particles[0].position, DVec3::new(4e-4, 5e-4, 6e-4));
+    let missing = parse_liggghts_dump(DUMP, Some(150)).unwrap_err();
+    assert!(missing.contains("timesteps [100, 200]"), "{missing}");
+}
+
+#[test]
+fn a_gzipped_dump_reads_like_the_plain_one() {
+    use std::io::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("d.dump"), DUMP).unwrap();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    gz.write_all(DUMP.as_bytes()).unwrap();
+    std::fs::write(dir.path().join("d.dump.gz"), gz.finish().unwrap()).unwrap();
+    let block = |file: &str| {
+        format!("[[import]]\nfile = \"{file}\"\nformat = \"liggghts_dump\"\nmaterial = \"steel\"\n")
+    };
+    let plain = build_in(dir.path(), &block("d.dump")).unwrap();
+    let gzipped = build_in(dir.path(), &block("d.dump.gz")).unwrap();
+    assert_eq!(plain.position, gzipped.position);
+    assert_eq!(plain.len(), 3);
+}
+
+#[test]
+fn the_shipped_liggghts_start_configuration_has_the_benchmark_bed() {
+    // shared/bench/liggghts/README.md: 19,200 spheres of R = 15 µm in a 1.32 × 1.32 mm box.
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    let tmp = tempfile::tempdir().unwrap();
+    let p = build_in(
+        tmp.path(),
+        &format!(
+            "[[import]]\nfile = \"{dir}/data/liggghts_start_20k.dump.gz\"\nformat = \"liggghts_dump\"\nmaterial = \"steel\"\n"
+        ),
+    )
+    .unwrap();
+    assert_eq!(p.len(), 19_200);
+    assert!(p.radius.iter().all(|&r| r == 1.5e-5));
+    for x in &p.position {
+        assert!((0.0..=1.32e-3).contains(&x.x) && (0.0..=1.32e-3).contains(&x.y));
+        // Settled on the plate at z = 0 in a bed ≈ 318 µm deep: centres between r − δ and 0.4 mm.
+        assert!(x.z > 1.4e-5 && x.z < 4e-4, "z = {}", x.z);
+    }
+}
+
+#[test]
+fn bad_files_are_errors_naming_key_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = |name: &str, text: &str| {
+        std::fs::write(dir.path().join(name), text).unwrap();
+        build_in(
+            dir.path(),
+            &format!("[[import]]\nfile = \"{name}\"\nformat = \"csv\"\nmaterial = \"steel\"\n"),
+        )
+        .unwrap_err()
+    };
+    let cases: [(String, &[&str]); 5] = [
+        (
+            csv("a.csv", "x_m,y_m,z_m,radius_m\n0,0,0,1e-5\n0,0,1e-4,abc\n"),
+            &["import[0].file = \"a.csv\"", "line 3, column `radius_m`: \"abc\" is not a number"],
+        ),
+        (
+            csv("b.csv", "x_m,y_m,z_m,radius\n0,0,0,1e-5\n"),
+            &["line 1: unknown column `radius`", "radius_m"],
+        ),
+        (
+            csv("c.csv", "x_m,y_m,z_m,radius_m\n0,0,0,-1e-5\n"),
+            &["line 2, column `radius_m`: -0.00001 must be > 0"],
+        ),
+        (
+            csv("d.csv", "x_m,y_m,z_m,radius_m,material\n0,0,0,1e-5,copper\n"),
+            &["material \"copper\": no such material"],
+        ),
+        (
+            build_in(
+                dir.path(),
+                "[[import]]\nfile = \"nowhere.dump\"\nformat = \"liggghts_dump\"\nmaterial = \"steel\"\n",
+            )
+            .unwrap_err(),
+            &["import[0].file = \"nowhere.dump\"", "cannot open"],
+        ),
+    ];
+    for (message, fragments) in &cases {
+        for fragment in *fragments {
+            assert!(message.contains(fragment), "lacks {fragment:?}:\n{message}");
+        }
+    }
+}
+
+#[cfg(feature = "hdf5")]
+#[test]
+fn an_am_sim_frame_round_trips_exactly() {
+    use am_sim::output::Writers;
+    use am_sim::simulation::Simulation;
+    let dir = tempfile::tempdir().unwrap();
+    let particles = sample_particles();
+    let text = format!(
+        "{HEAD}\n[[walls]]\npoint_m = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nmaterial = \"steel\"\n"
+    );
+    let scene = Scene::from_toml(&format!(
+        "{text}[[particles]]\nposition_m = [0.0, 0.0, 1.0]\nradius_m = 1e-5\nmaterial = \"steel\"\n"
+    ))
+    .unwrap();
+    let (mut model, _) = Model::try_build(&scene).unwrap();
+    model.output.file = Some(dir.path().join("run.h5"));
+    let mut sim = Simulation::new(model, particles);
+    let mut writers = Writers::open(&sim, &text, false, None).unwrap();
+    writers.write(&sim, &sim.diagnostics(), 0.0, false).unwrap();
+    let first = sim.particles.clone();
+    for _ in 0..10 {
+        sim.step();
+    }
+    writers.write(&sim, &sim.diagnostics(), 0.0, true).unwrap();
+    writers.close().unwrap();
+
+    let block = |frame: &str| {
+        format!(
+            "[[import]]\nfile = \"run.h5\"\nformat = \"am_sim_h5\"\nmaterial = \"steel\"\n{frame}"
+        )
+    };
+    let last = build_in(dir.path(), &block("")).unwrap();
+    assert_eq!(last.position, sim.particles.position);
+    assert_eq!(last.velocity, sim.particles.velocity);
+    assert_eq!(last.radius, sim.particles.radius);
+    let initial = build_in(dir.path(), &block("frame = 0\n")).unwrap();
+    assert_eq!(initial.position, first.position);
+    let missing = build_in(dir.path(), &block("frame = 7\n")).unwrap_err();
+    assert!(missing.contains("no complete frame 7"), "{missing}");
+}
+
+#[test]
+fn every_shipped_scene_builds_its_particles() {
+    // Scene loading validates; building also reads `[[import]]` files (relative to scenes/) and
+    // places `[[insert]]` spheres, which validation cannot check.
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    for entry in std::fs::read_dir(dir).expect("scenes/") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            let (_, particles) =
+                Model::try_build(&scene).unwrap_or_else(|e| panic!("{}", e.in_file(&path)));
+            assert!(!particles.is_empty(), "{}", path.display());
+        }
+    }
+}
