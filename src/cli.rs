@@ -49,6 +49,16 @@ enum Command {
         /// Scene file (TOML).
         scene: PathBuf,
     },
+    /// Convergence study: sweep the time step over analytic cases, write `accuracy.md` and
+    /// `images/accuracy-*.png` (docs/accuracy.md says what it measures).
+    Study {
+        /// Reduced sweep: seconds instead of minutes.
+        #[arg(long)]
+        quick: bool,
+        /// Folder to write into.
+        #[arg(long, default_value = "docs")]
+        out: PathBuf,
+    },
 }
 
 #[derive(Debug, Args)]
@@ -83,6 +93,9 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Some(Command::Check { scene }) => run_check(&scene).map(|()| Ending::Finished),
         Some(Command::Run(args)) => run(&args),
+        Some(Command::Study { quick, out }) => {
+            crate::study::run(&crate::study::Options { quick, out }).map(|_| Ending::Finished)
+        }
         None if cli.run.scene.is_some() => run(&cli.run),
         None => Err(
             "no scene given: usage `am-sim SCENE.toml` or `am-sim check SCENE.toml` (see --help)"
