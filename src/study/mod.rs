@@ -77,6 +77,8 @@ pub struct Series {
     pub reference: f64,
     /// Where the reference comes from.
     pub reference_kind: Reference,
+    /// The order the scheme and the way the quantity is read lead one to expect, and why.
+    pub expected: &'static str,
     /// Runs, from the coarsest time step to the finest.
     pub samples: Vec<Sample>,
 }
@@ -97,8 +99,15 @@ impl Series {
             scale,
             reference,
             reference_kind,
+            expected: "",
             samples: Vec::new(),
         }
+    }
+
+    /// Sets the expected order (see [`Series::expected`]).
+    fn expecting(mut self, expected: &'static str) -> Self {
+        self.expected = expected;
+        self
     }
 
     /// Adds a run whose measured value is `value`.

@@ -43,15 +43,15 @@ pub(super) fn markdown(study: &Study) -> String {
     );
     md.push_str("## Observed orders\n\n");
     md.push_str(
-        "| Case | Quantity | Reference | Finest dt | Error there | Observed order | Fitted order |\n",
+        "| Case | Quantity | Reference | Finest dt | Error there | Observed order | Fitted order | Expected |\n",
     );
-    md.push_str("|---|---|---|---|---|---|---|\n");
+    md.push_str("|---|---|---|---|---|---|---|---|\n");
     for family in &study.families {
         for s in &family.series {
             let finest = s.samples.last().copied();
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} |",
                 family.title,
                 s.label(),
                 reference_text(s),
@@ -59,6 +59,7 @@ pub(super) fn markdown(study: &Study) -> String {
                 finest.map_or_else(|| "–".into(), |f| format!("{:.2e}", f.error)),
                 order_text(s.observed_order()),
                 order_text(s.fitted_order()),
+                s.expected,
             );
         }
     }
@@ -94,7 +95,7 @@ fn section(md: &mut String, family: &Family) {
         };
         let _ = write!(
             md,
-            "### {}\n\nReference: {:.10e}{} ({}).\n\n\
+            "### {}\n\nReference: {:.10e}{} ({}). Expected order: {}.\n\n\
              | dt [s] | dt/{} | value{} | relative error | local order | wall time [s] |\n\
              |---|---|---|---|---|---|\n",
             s.label(),
@@ -105,6 +106,7 @@ fn section(md: &mut String, family: &Family) {
                 format!(" {}", s.unit)
             },
             reference_text(s),
+            s.expected,
             s.scale.0,
             unit,
         );
