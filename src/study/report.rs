@@ -14,22 +14,31 @@ pub(super) fn markdown(study: &Study) -> String {
     } else {
         "the full sweep"
     };
+    let timing = if study.quick {
+        "The reduced sweep times every run once.".to_owned()
+    } else {
+        format!(
+            "Each is the smallest of repeated runs (a case is rerun while its runs took less than \
+             {:.0} ms in total): two-particle runs last micro- to milliseconds, and a single \
+             timing of them is mostly noise.",
+            1e3 * super::TIMING_BUDGET
+        )
+    };
     let _ = write!(
         md,
         "# Accuracy: error against run time\n\n\
          <!-- Written by `am-sim study`: edit src/study/, not this file. -->\n\n\
          This page and the plots in `images/accuracy-*.png` are written by one command:\n\n\
          ```sh\n\
-         cargo run --release -- study            # full sweep into docs/ (a few minutes)\n\
+         cargo run --release -- study            # full sweep into docs/ (seconds)\n\
          cargo run --release -- study --quick --out /tmp/study   # reduced sweep, seconds\n\
          ```\n\n\
-         This version is {sweep}; the whole study took {:.0} s of wall time. It sweeps the time \
+         This version is {sweep}; the whole study took {:.2} s of wall time. It sweeps the time \
          step (and, for the heat balance, the substep fraction θ of M.49) over cases with an \
          analytic answer, runs each case through the same scene path as `am-sim scene.toml`, \
          and reports for every quantity the relative error against the reference and the wall \
-         time of the run. Wall times are measured with one run per entry on the machine that \
-         wrote this page (two-particle scenes: micro- to milliseconds); compare them within a \
-         table, not across machines. `tests/study.rs` runs the reduced sweep and checks the \
+         time of the run. Wall times are measured on the machine that wrote this page. {} \
+         Compare them within a table, not across machines. `tests/study.rs` runs the reduced sweep and checks the \
          orders below.\n\n\
          **Method.** The relative error of a run is |value/reference − 1|. The reference is a \
          closed form where one exists; otherwise (damped restitution, settling time, peak \
@@ -37,9 +46,9 @@ pub(super) fn markdown(study: &Study) -> String {
          local order between two consecutive steps is p = ln(e₁/e₂)/ln(dt₁/dt₂); the *observed \
          order* is the local order of the finest pair of runs whose errors are both above \
          round-off (10⁻¹²), the *fitted order* the least-squares slope of ln e against ln dt \
-         over all runs above round-off. An error that does not change with dt (round-off, or a \
-         floor set by θ) has no order: \"–\".\n\n",
-        study.wall_time
+         over all runs above round-off. An error at round-off has no order (\"–\"); one on a floor \
+         set by θ (an error that does not change with dt) shows a local order of 0.\n\n",
+        study.wall_time, timing
     );
     md.push_str("## Observed orders\n\n");
     md.push_str(

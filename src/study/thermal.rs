@@ -228,8 +228,7 @@ pub(super) fn family(quick: bool) -> Family {
              plateau read on the step grid (from the first step at T_m to the first above it) \
              against m L / P = {expected:.4e} s. For (1) and (2) dt = τ/n, n = {counts:?}, with \
              the substep fraction θ of M.49 swept over {thetas:?} (a step is split into \
-             ⌈dt max(G/C) / θ⌉ substeps); for (3) dt = (m L/P)/(n √2), n = {plateau_counts:?} (incommensurate with the plateau, so its two ends fall at different phases of the step grid) (no \
-             conductance, so always one substep)."
+             ⌈dt max(G/C) / θ⌉ substeps); for (3) dt = (m L/P)/(n √2), n = {plateau_counts:?} (incommensurate with the plateau, so that its two ends fall at different phases of the step grid; no conductance, so always one substep)."
         ),
         reading: "The heat balance is integrated by explicit Euler on the enthalpy, first order: \
                   while one substep per step suffices (dt ≤ θ C/G), the errors of (1) and (2) \
