@@ -19,7 +19,7 @@ mod bond;
 mod hertz;
 mod plot;
 mod report;
-mod scenes;
+pub mod scenes;
 mod thermal;
 
 use std::path::{Path, PathBuf};

@@ -44,14 +44,40 @@ pub fn two_spheres(
     dt: f64,
     duration: f64,
 ) -> Simulation {
-    let bond_section = bond.map_or_else(String::new, |b| {
+    simulation(&two_spheres_text(
+        density,
+        2.0 * PAPER_RADIUS,
+        relative_speed,
+        contact_damping,
+        bond.map(|b| (b, "always")),
+        dt,
+        duration,
+    ))
+}
+
+/// Scene text of two spheres of section 5 (r = 1 mm, E = 1 GPa, ν = 0) of `density` [kg/m³],
+/// centred on the origin `distance` [m] apart along x (less than 2r: initially overlapping) and
+/// approaching each other at `relative_speed` [m/s] (each moves at half of it), with contact
+/// damping ratio ξ_con and an optional bond with its criterion ("always", "never", ...).
+/// The integration tests build their two-sphere scenes with it too.
+#[must_use]
+pub fn two_spheres_text(
+    density: f64,
+    distance: f64,
+    relative_speed: f64,
+    contact_damping: f64,
+    bond: Option<(BondParams, &str)>,
+    dt: f64,
+    duration: f64,
+) -> String {
+    let bond_section = bond.map_or_else(String::new, |(b, criterion)| {
         format!(
-            "[bond]\nadhesion_exponent = {:e}\nadhesion_stiffness = {:e}\ndamping_ratio = {:e}\ncriterion = \"always\"\n",
+            "[bond]\nadhesion_exponent = {:e}\nadhesion_stiffness = {:e}\ndamping_ratio = {:e}\ncriterion = \"{criterion}\"\n",
             b.adhesion_exponent, b.adhesion_stiffness, b.damping_ratio
         )
     });
-    let (r, v) = (PAPER_RADIUS, relative_speed / 2.0);
-    simulation(&format!(
+    let (r, half_d, half_v) = (PAPER_RADIUS, distance / 2.0, relative_speed / 2.0);
+    format!(
         r#"
 [scene]
 version = 1
@@ -69,18 +95,18 @@ damping_ratio = {contact_damping:e}
 {bond_section}
 [[particles]]
 position_m = [{x0:e}, 0.0, 0.0]
-velocity_m_s = [{v:e}, 0.0, 0.0]
+velocity_m_s = [{half_v:e}, 0.0, 0.0]
 radius_m = {r:e}
 material = "paper"
 [[particles]]
-position_m = [{r:e}, 0.0, 0.0]
+position_m = [{half_d:e}, 0.0, 0.0]
 velocity_m_s = [{v1:e}, 0.0, 0.0]
 radius_m = {r:e}
 material = "paper"
 "#,
-        x0 = -r,
-        v1 = -v
-    ))
+        x0 = -half_d,
+        v1 = -half_v
+    )
 }
 
 /// Overlap of particles 0 and 1 [m].
