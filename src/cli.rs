@@ -49,10 +49,12 @@ enum Command {
         /// Scene file (TOML).
         scene: PathBuf,
     },
-    /// Convergence study: sweep the time step over analytic cases, write `accuracy.md` and
-    /// `images/accuracy-*.png` (docs/accuracy.md says what it measures).
+    /// Convergence study: error against run time on analytic cases (docs/accuracy.md).
+    ///
+    /// Sweeps the time step (and the thermal substep fraction) over cases with closed-form
+    /// answers and writes OUT/accuracy.md and OUT/images/accuracy-*.png.
     Study {
-        /// Reduced sweep: seconds instead of minutes.
+        /// Reduced sweep: four time steps per quantity, every run timed once.
         #[arg(long)]
         quick: bool,
         /// Folder to write into.

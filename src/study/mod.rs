@@ -34,7 +34,7 @@ pub const ROUND_OFF: f64 = 1e-12;
 /// What to run and where to write it.
 #[derive(Debug, Clone)]
 pub struct Options {
-    /// Reduced sweep (four time steps per quantity, a coarser bisection): seconds, not minutes.
+    /// Reduced sweep: four time steps per quantity, a coarser bisection, every run timed once.
     pub quick: bool,
     /// Folder for `accuracy.md` and `images/accuracy-*.png`.
     pub out: PathBuf,
