@@ -49,6 +49,18 @@ enum Command {
         /// Scene file (TOML).
         scene: PathBuf,
     },
+    /// Convergence study: error against run time on analytic cases (docs/accuracy.md).
+    ///
+    /// Sweeps the time step (and the thermal substep fraction) over cases with closed-form
+    /// answers and writes OUT/accuracy.md and OUT/images/accuracy-*.png.
+    Study {
+        /// Reduced sweep: four time steps per quantity, every run timed once.
+        #[arg(long)]
+        quick: bool,
+        /// Folder to write into.
+        #[arg(long, default_value = "docs")]
+        out: PathBuf,
+    },
 }
 
 #[derive(Debug, Args)]
@@ -86,6 +98,9 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Some(Command::Check { scene }) => run_check(&scene).map(|()| Ending::Finished),
         Some(Command::Run(args)) => run(&args),
+        Some(Command::Study { quick, out }) => {
+            crate::study::run(&crate::study::Options { quick, out }).map(|_| Ending::Finished)
+        }
         None if cli.run.scene.is_some() => run(&cli.run),
         None => Err(
             "no scene given: usage `am-sim SCENE.toml` or `am-sim check SCENE.toml` (see --help)"

@@ -25,6 +25,7 @@ pub mod output;
 pub mod particles;
 pub mod scene;
 pub mod simulation;
+pub mod study;
 pub mod thermal;
 
 /// Below this many items a pass runs on the calling thread: handing a few hundred items to the

@@ -2,9 +2,15 @@
 //! same path as `am-sim scene.toml`, so the tests also exercise the scene layer.
 #![allow(dead_code)]
 
+use am_sim::contact::BondParams;
 use am_sim::model::Model;
 use am_sim::scene::Scene;
 use am_sim::simulation::Simulation;
+
+/// Overlap and approach speed of particles 0 and 1, and the mass of one sphere of the paper's
+/// radius, as the convergence study measures them. (Not every test uses all three.)
+#[allow(unused_imports)]
+pub use am_sim::study::scenes::{approach_speed, overlap, paper_sphere_mass as sphere_mass};
 
 /// Material and contact data of the paper's section 5 (r = 1 mm, E = 1 GPa, ν = 0).
 pub const RADIUS: f64 = 1e-3;
@@ -57,45 +63,23 @@ pub fn two_spheres_at(
     dt: f64,
     duration: f64,
 ) -> Simulation {
-    let bond_section = bond.map_or_else(String::new, |b| {
-        format!(
-            "[bond]\nadhesion_exponent = {:e}\nadhesion_stiffness = {:e}\ndamping_ratio = {:e}\ncriterion = \"{}\"\n",
-            b.adhesion_exponent, b.adhesion_stiffness, b.damping_ratio, b.criterion
-        )
+    let bond = bond.map(|b| {
+        let params = BondParams {
+            adhesion_exponent: b.adhesion_exponent,
+            adhesion_stiffness: b.adhesion_stiffness,
+            damping_ratio: b.damping_ratio,
+        };
+        (params, b.criterion)
     });
-    let half_d = distance / 2.0;
-    let half_v = relative_speed / 2.0;
-    let text = format!(
-        r#"
-[scene]
-version = 1
-[simulation]
-dt_s = {dt:e}
-duration_s = {duration:e}
-skin_m = 2e-4
-[materials.paper]
-density_kg_m3 = {density:e}
-youngs_modulus_pa = {YOUNGS:e}
-poisson_ratio = 0.0
-[contact]
-model = "hertz"
-damping_ratio = {contact_damping:e}
-{bond_section}
-[[particles]]
-position_m = [{x0:e}, 0.0, 0.0]
-velocity_m_s = [{half_v:e}, 0.0, 0.0]
-radius_m = {RADIUS:e}
-material = "paper"
-[[particles]]
-position_m = [{half_d:e}, 0.0, 0.0]
-velocity_m_s = [{v1:e}, 0.0, 0.0]
-radius_m = {RADIUS:e}
-material = "paper"
-"#,
-        x0 = -half_d,
-        v1 = -half_v
-    );
-    simulation(&text)
+    simulation(&am_sim::study::scenes::two_spheres_text(
+        density,
+        distance,
+        relative_speed,
+        contact_damping,
+        bond,
+        dt,
+        duration,
+    ))
 }
 
 /// Loads scene text and sets up the simulation.
@@ -105,27 +89,6 @@ pub fn simulation(text: &str) -> Simulation {
         Scene::from_toml(text).unwrap_or_else(|e| panic!("test scene rejected: {e}\n{text}"));
     let (model, particles) = Model::build(&scene);
     Simulation::new(model, particles)
-}
-
-/// Overlap of the first two particles [m].
-#[must_use]
-pub fn overlap(sim: &Simulation) -> f64 {
-    let p = &sim.particles;
-    p.radius[0] + p.radius[1] - p.position[0].distance(p.position[1])
-}
-
-/// Approach speed of the first two particles along their line of centres [m/s] (> 0 approaching).
-#[must_use]
-pub fn approach_speed(sim: &Simulation) -> f64 {
-    let p = &sim.particles;
-    let n = (p.position[1] - p.position[0]).normalize();
-    (p.velocity[0] - p.velocity[1]).dot(n)
-}
-
-/// Mass of one sphere of the paper's radius [kg].
-#[must_use]
-pub fn sphere_mass(density: f64) -> f64 {
-    density * 4.0 / 3.0 * std::f64::consts::PI * RADIUS.powi(3)
 }
 
 /// The text of a shipped scene, `scenes/<name>`.
