@@ -19,6 +19,7 @@ use crate::contact::{self, BondState, FrictionParams, PairKinematics, hertz, rol
 use crate::model::Model;
 use crate::neighbor::NeighborList;
 use crate::particles::{Particles, Rotation, WallTangential};
+use crate::periodic::Periodic;
 use crate::thermal::{self, ThermalModel};
 
 /// What a pair contributes, stored per pair slot between the two passes.
@@ -34,11 +35,20 @@ pub struct PairResult {
     pub lost: f64,
 }
 
-/// Geometry of pair (a, b): unit normal from a to b and the overlap δ = r_a + r_b − |x_b − x_a|.
+/// Geometry of pair (a, b): unit normal from a to b and the overlap δ = r_a + r_b − |x_b − x_a|,
+/// with x_b − x_a taken as its minimum image across periodic axes (M.77).
 #[inline]
 #[must_use]
-pub fn pair_geometry(particles: &Particles, a: usize, b: usize) -> (DVec3, f64) {
-    let separation = particles.position[b] - particles.position[a];
+pub fn pair_geometry(
+    periodic: Option<&Periodic>,
+    particles: &Particles,
+    a: usize,
+    b: usize,
+) -> (DVec3, f64) {
+    let mut separation = particles.position[b] - particles.position[a];
+    if let Some(periodic) = periodic {
+        separation = periodic.minimum_image(separation);
+    }
     let distance = separation.length();
     // Coincident centres have no direction; any unit vector keeps the force finite and the
     // blown-up overlap is reported by the run's overlap guard.
@@ -194,7 +204,7 @@ pub fn pair_pass(
                     conductance: Option<&mut f64>,
                     slot: Option<&mut PairTangential>| {
         let (a, b) = (a as usize, b as usize);
-        let (normal, overlap) = pair_geometry(particles, a, b);
+        let (normal, overlap) = pair_geometry(model.periodic.as_ref(), particles, a, b);
         if overlap <= 0.0 {
             if let Some(h) = conductance {
                 *h = 0.0;

@@ -23,6 +23,7 @@ pub mod model;
 pub mod neighbor;
 pub mod output;
 pub mod particles;
+pub mod periodic;
 pub mod scene;
 pub mod simulation;
 pub mod study;

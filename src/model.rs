@@ -12,6 +12,7 @@ use crate::contact::{BondParams, FrictionParams, NormalParams, bond, hertz, tang
 use crate::laser::{self, Laser};
 use crate::output::frame::{Needs, OptionalField};
 use crate::particles::{ParticleInit, Particles};
+use crate::periodic::Periodic;
 use crate::scene::{
     Axis, ConductionConfig, CriterionConfig, LaserConfig, MeltingRule, PathConfig, Scene,
     SceneError, ThermalConfig, Violation, validate::lattice_sites,
@@ -243,6 +244,8 @@ pub struct Model {
     /// Tangential and rolling parameters, if the scene has friction or rolling resistance
     /// (then the particles rotate).
     pub friction: Option<Friction>,
+    /// Periodic axes, if the scene has `[periodic]` (M.77).
+    pub periodic: Option<Periodic>,
     /// Settling under gravity before the run, if the scene has `[deposition]`.
     pub deposition: Option<Deposition>,
     /// `[a * n + b]`: normal-law parameters of material pair (a, b); symmetric.
@@ -382,6 +385,7 @@ impl Model {
         }
 
         let friction = Friction::build(scene, &materials, &walls);
+        let periodic = periodic_box(scene, &particles)?;
 
         let sim = &scene.simulation;
         // Round-off in duration/dt (5e-3/5e-7 = 10000.000000000002) must not add a step.
@@ -424,10 +428,56 @@ impl Model {
             }),
             output: OutputSettings::resolve(scene, steps),
             friction,
+            periodic,
             pair_params,
             wall_params,
         };
         Ok((model, particles))
+    }
+}
+
+/// The periodic box of `[periodic]`, checked against the particles: the neighbour search needs
+/// at least three cells of `2 r_max + skin` across each period (M.77).
+fn periodic_box(scene: &Scene, particles: &Particles) -> Result<Option<Periodic>, SceneError> {
+    let Some(config) = &scene.periodic else {
+        return Ok(None);
+    };
+    let r_max = particles.radius.iter().copied().fold(0.0, f64::max);
+    let r_min = particles
+        .radius
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min);
+    let skin = scene.simulation.skin_m.unwrap_or(0.2 * r_min);
+    let cell = 2.0 * r_max + skin;
+    let mut periodic = Periodic {
+        lower: DVec3::ZERO,
+        length: [None; 3],
+    };
+    let mut violations = Vec::new();
+    for (key, axis, [lower, upper]) in config.axes() {
+        let length = upper - lower;
+        if length < 3.0 * cell {
+            violations.push(crate::scene::Violation {
+                key: key.into(),
+                value: format!("[{lower}, {upper}]"),
+                reason: format!(
+                    "a period of {length:e} m is shorter than three neighbour cells of 2 r_max + skin = {cell:e} m: widen the box"
+                ),
+            });
+        }
+        periodic.length[axis] = Some(length);
+        let mut lower_corner = periodic.lower.to_array();
+        lower_corner[axis] = lower;
+        periodic.lower = DVec3::from_array(lower_corner);
+    }
+    if violations.is_empty() {
+        Ok(Some(periodic))
+    } else {
+        Err(SceneError::Invalid {
+            path: None,
+            violations,
+        })
     }
 }
 

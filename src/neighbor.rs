@@ -17,6 +17,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::contact::BondState;
+use crate::periodic::Periodic;
 
 /// One entry of a particle's incident pairs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -42,16 +43,18 @@ pub struct NeighborList {
     pub incidence: Vec<Incidence>,
     reference_positions: Vec<DVec3>,
     skin: f64,
+    periodic: Option<Periodic>,
     /// Number of builds so far.
     pub builds: u64,
 }
 
 impl NeighborList {
-    /// An empty list with the given skin [m].
+    /// An empty list with the given skin [m], over a domain periodic along `periodic`'s axes.
     #[must_use]
-    pub fn new(skin: f64) -> Self {
+    pub fn new(skin: f64, periodic: Option<Periodic>) -> Self {
         Self {
             skin,
+            periodic,
             ..Self::default()
         }
     }
@@ -97,7 +100,8 @@ impl NeighborList {
         states: &mut Vec<BondState>,
         history: Option<&mut Vec<T>>,
     ) {
-        let mut candidates = candidate_pairs(positions, radii, ids, self.skin);
+        let mut candidates =
+            candidate_pairs(positions, radii, ids, self.skin, self.periodic.as_ref());
         candidates.par_sort_unstable_by_key(|(key, _)| *key);
 
         // For each new pair, its index in the old list, if it was there.
@@ -189,7 +193,13 @@ type Candidate = ((u64, u64), [u32; 2]);
 /// All pairs closer than `r_i + r_j + skin`, found through a uniform cell grid of edge
 /// `2 r_max + skin`: a pair within the cutoff lies in the same or an adjacent cell. Cells are found
 /// by sorting the particles by cell (no dense grid), so stray particles far away cost no memory.
-fn candidate_pairs(positions: &[DVec3], radii: &[f64], ids: &[u64], skin: f64) -> Vec<Candidate> {
+fn candidate_pairs(
+    positions: &[DVec3],
+    radii: &[f64],
+    ids: &[u64],
+    skin: f64,
+    periodic: Option<&Periodic>,
+) -> Vec<Candidate> {
     if positions.is_empty() {
         return Vec::new();
     }
@@ -198,11 +208,47 @@ fn candidate_pairs(positions: &[DVec3], radii: &[f64], ids: &[u64], skin: f64) -
     let origin = positions
         .iter()
         .copied()
-        .fold(DVec3::splat(f64::INFINITY), DVec3::min);
+        .fold(DVec3::splat(f64::INFINITY), DVec3::min)
+        .to_array();
+    // Per axis: where cell 0 starts, the cell size, and on a periodic axis the number of cells
+    // across the period (≥ 3, checked when the model is built), so neighbour cells wrap around.
+    let mut grid = [(0.0, cell, None::<i64>); 3];
+    for (axis, g) in grid.iter_mut().enumerate() {
+        *g = match periodic.and_then(|p| p.length[axis].map(|l| (p.lower.to_array()[axis], l))) {
+            #[allow(clippy::cast_possible_truncation)]
+            Some((lower, length)) => {
+                let count = ((length / cell).floor() as i64).max(1);
+                #[allow(clippy::cast_precision_loss)]
+                let size = length / count as f64;
+                (lower, size, Some(count))
+            }
+            None => (origin[axis], cell, None),
+        };
+    }
     #[allow(clippy::cast_possible_truncation)]
     let cell_of = |x: DVec3| -> [i64; 3] {
-        let c = ((x - origin) / cell).floor();
-        [c.x as i64, c.y as i64, c.z as i64]
+        let x = x.to_array();
+        let mut c = [0i64; 3];
+        for axis in 0..3 {
+            let (start, size, count) = grid[axis];
+            let index = ((x[axis] - start) / size).floor() as i64;
+            c[axis] = count.map_or(index, |n| index.rem_euclid(n));
+        }
+        c
+    };
+    let neighbour_cell = |c: [i64; 3], offset: [i64; 3]| -> [i64; 3] {
+        let mut n = [0i64; 3];
+        for axis in 0..3 {
+            let shifted = c[axis] + offset[axis];
+            n[axis] = grid[axis]
+                .2
+                .map_or(shifted, |count| shifted.rem_euclid(count));
+        }
+        n
+    };
+    let separation = |i: usize, j: usize| {
+        let d = positions[j] - positions[i];
+        periodic.map_or(d, |p| p.minimum_image(d))
     };
     let mut order: Vec<([i64; 3], u32)> = positions
         .iter()
@@ -241,13 +287,13 @@ fn candidate_pairs(positions: &[DVec3], radii: &[f64], ids: &[u64], skin: f64) -
             for dz in -1..=1 {
                 for dy in -1..=1 {
                     for dx in -1..=1 {
-                        for &(_, j) in members([c[0] + dx, c[1] + dy, c[2] + dz]) {
+                        for &(_, j) in members(neighbour_cell(c, [dx, dy, dz])) {
                             let j = j as usize;
                             if j <= i {
                                 continue;
                             }
                             let cutoff = radii[i] + radii[j] + skin;
-                            if (positions[j] - positions[i]).length_squared() < cutoff * cutoff {
+                            if separation(i, j).length_squared() < cutoff * cutoff {
                                 #[allow(clippy::cast_possible_truncation)]
                                 let (a, b) = if ids[i] < ids[j] {
                                     (i as u32, j as u32)
@@ -287,7 +333,7 @@ mod tests {
         }
         let radii = vec![1.0; positions.len()];
         let ids: Vec<u64> = (0..positions.len() as u64).rev().collect(); // ids opposite to indices
-        let mut list = NeighborList::new(0.3);
+        let mut list = NeighborList::new(0.3, None);
         let mut states = Vec::new();
         list.rebuild(&positions, &radii, &ids, &mut states);
         let mut expected = 0;
@@ -307,11 +353,60 @@ mod tests {
     }
 
     #[test]
+    fn finds_exactly_the_minimum_image_pairs_in_a_periodic_box() {
+        // 300 random spheres of radius 1 in a box periodic in x (period 9.3, four cells) and y
+        // (period 7.0, three cells: the smallest allowed), open in z: the list must equal the O(n²)
+        // definition with minimum-image distances, including pairs across the faces.
+        let periodic = Periodic {
+            lower: DVec3::new(-2.0, 1.0, 0.0),
+            length: [Some(9.3), Some(7.0), None],
+        };
+        let mut seed = 7u64;
+        let mut uniform = || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            #[allow(clippy::cast_precision_loss)]
+            let u = (seed >> 11) as f64 / (1u64 << 53) as f64;
+            u
+        };
+        let positions: Vec<DVec3> = (0..300)
+            .map(|_| {
+                DVec3::new(
+                    -2.0 + 9.3 * uniform(),
+                    1.0 + 7.0 * uniform(),
+                    12.0 * uniform(),
+                )
+            })
+            .collect();
+        let radii = vec![1.0; positions.len()];
+        let ids: Vec<u64> = (0..positions.len() as u64).collect();
+        let mut list = NeighborList::new(0.3, Some(periodic));
+        list.rebuild(&positions, &radii, &ids, &mut Vec::new());
+        let mut expected = Vec::new();
+        let mut across = 0;
+        for i in 0..positions.len() {
+            for j in i + 1..positions.len() {
+                let d = positions[j] - positions[i];
+                if periodic.minimum_image(d).length() < 2.3 {
+                    expected.push((ids[i], ids[j]));
+                    across += usize::from(d.length() >= 2.3);
+                }
+            }
+        }
+        assert!(
+            across > 10,
+            "the case must have pairs across the faces ({across})"
+        );
+        assert_eq!(list.keys, expected);
+    }
+
+    #[test]
     fn history_follows_the_pair_across_rebuilds() {
         let mut positions = vec![DVec3::ZERO, DVec3::X * 1.9, DVec3::X * 10.0];
         let radii = vec![1.0; 3];
         let ids = vec![7, 3, 5];
-        let mut list = NeighborList::new(0.5);
+        let mut list = NeighborList::new(0.5, None);
         let (mut states, mut history) = (Vec::new(), Vec::new());
         list.rebuild_with_history(&positions, &radii, &ids, &mut states, Some(&mut history));
         history[0] = 42u32;
@@ -327,7 +422,7 @@ mod tests {
         let mut positions = vec![DVec3::ZERO, DVec3::X * 1.9, DVec3::X * 10.0];
         let radii = vec![1.0; 3];
         let ids = vec![7, 3, 5];
-        let mut list = NeighborList::new(0.5);
+        let mut list = NeighborList::new(0.5, None);
         let mut states = Vec::new();
         list.rebuild(&positions, &radii, &ids, &mut states);
         assert_eq!(list.pairs, vec![[1, 0]]);

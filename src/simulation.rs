@@ -221,7 +221,7 @@ impl Simulation {
     /// Sets up the neighbour list and the forces at t = 0.
     #[must_use]
     pub fn new(model: Model, particles: Particles) -> Self {
-        let neighbors = NeighborList::new(model.skin);
+        let neighbors = NeighborList::new(model.skin, model.periodic);
         let thermal = model
             .thermal
             .as_ref()
@@ -425,7 +425,7 @@ impl Simulation {
         };
         let rotation = Self::resumed_rotation(&model, n, state.rotation.as_ref())?;
         let mut sim = Self {
-            neighbors: NeighborList::new(model.skin),
+            neighbors: NeighborList::new(model.skin, model.periodic),
             model,
             particles,
             bond_states: Vec::new(),
@@ -476,7 +476,12 @@ impl Simulation {
         }
         // Overlaps for the diagnostics of the first row; the next step recomputes everything.
         for (p, &[a, b]) in sim.neighbors.pairs.iter().enumerate() {
-            let (_, overlap) = forces::pair_geometry(&sim.particles, a as usize, b as usize);
+            let (_, overlap) = forces::pair_geometry(
+                sim.model.periodic.as_ref(),
+                &sim.particles,
+                a as usize,
+                b as usize,
+            );
             sim.pair_results[p] = PairResult {
                 force_on_first: glam::DVec3::ZERO,
                 overlap,
@@ -498,7 +503,8 @@ impl Simulation {
             .filter(|(_, (_, state))| **state == BondState::Bonded)
             .map(|(&[a, b], (result, _))| {
                 let (a, b) = (a as usize, b as usize);
-                let (normal, _) = forces::pair_geometry(&self.particles, a, b);
+                let (normal, _) =
+                    forces::pair_geometry(self.model.periodic.as_ref(), &self.particles, a, b);
                 (a, b, result.overlap, -result.force_on_first.dot(normal))
             })
             .collect()
@@ -525,6 +531,13 @@ impl Simulation {
     }
 
     fn rebuild_neighbors(&mut self) {
+        if let Some(periodic) = &self.model.periodic {
+            // (M.77): back into the box; the neighbour search and the output see wrapped
+            // positions, and the reference positions of the next rebuild check are these.
+            for x in &mut self.particles.position {
+                *x = periodic.wrap(*x);
+            }
+        }
         let p = &self.particles;
         if self.rotation.is_some() {
             self.neighbors.rebuild_with_history(

@@ -62,6 +62,37 @@ pub struct Scene {
     pub laser: Option<LaserConfig>,
     /// `[guards]`: limits at which a run stops (docs/stability.md); defaults apply when absent.
     pub guards: Option<GuardsConfig>,
+    /// `[periodic]`: axes along which the domain repeats (M.77); absent: none.
+    pub periodic: Option<PeriodicConfig>,
+}
+
+/// `[periodic]`: the bounds `[lower, upper]` of each periodic axis [m]; an axis not given is not
+/// periodic. The domain repeats with period `upper − lower`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PeriodicConfig {
+    /// Periodic in x between these bounds [m].
+    pub x_m: Option<[f64; 2]>,
+    /// Periodic in y between these bounds [m].
+    pub y_m: Option<[f64; 2]>,
+    /// Periodic in z between these bounds [m].
+    pub z_m: Option<[f64; 2]>,
+}
+
+impl PeriodicConfig {
+    /// `(key, axis index, bounds)` of the periodic axes given.
+    #[must_use]
+    pub fn axes(&self) -> Vec<(&'static str, usize, [f64; 2])> {
+        [
+            ("periodic.x_m", self.x_m),
+            ("periodic.y_m", self.y_m),
+            ("periodic.z_m", self.z_m),
+        ]
+        .into_iter()
+        .enumerate()
+        .filter_map(|(axis, (key, bounds))| bounds.map(|b| (key, axis, b)))
+        .collect()
+    }
 }
 
 /// `[guards]`: when a run stops itself instead of writing a state that is no longer physical.

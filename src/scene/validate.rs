@@ -118,6 +118,57 @@ pub fn validate(scene: &Scene) -> Vec<Violation> {
         c.positive("simulation.expected_impact_speed_m_s", speed);
     }
 
+    if let Some(periodic) = &scene.periodic {
+        let axes = periodic.axes();
+        if axes.is_empty() {
+            c.fail(
+                "periodic",
+                "{}",
+                "give at least one of x_m, y_m, z_m (the bounds of a periodic axis)",
+            );
+        }
+        let names = ["x", "y", "z"];
+        for (key, axis, [lower, upper]) in axes {
+            if lower.is_finite() && upper.is_finite() {
+                if upper <= lower {
+                    c.fail(
+                        key,
+                        format!("[{lower}, {upper}]"),
+                        "the upper bound must exceed the lower",
+                    );
+                }
+            } else {
+                c.fail(
+                    key,
+                    format!("[{lower}, {upper}]"),
+                    "both bounds must be finite numbers",
+                );
+            }
+            if scene.simulation.gravity_m_s2[axis] != 0.0 {
+                c.fail(
+                    "simulation.gravity_m_s2",
+                    format!("{:?}", scene.simulation.gravity_m_s2),
+                    format!(
+                        "has a component along the periodic axis {}: not supported (the gravitational energy would jump at every wrap)",
+                        names[axis]
+                    ),
+                );
+            }
+            for (k, wall) in scene.walls.iter().enumerate() {
+                if wall.normal[axis] != 0.0 {
+                    c.fail(
+                        format!("walls[{k}].normal"),
+                        format!("{:?}", wall.normal),
+                        format!(
+                            "faces along the periodic axis {}: a wall across a periodic direction cuts the domain (remove it, or the axis from [periodic])",
+                            names[axis]
+                        ),
+                    );
+                }
+            }
+        }
+    }
+
     if let Some(guards) = &scene.guards {
         if let Some(ratio) = guards.max_overlap_ratio {
             c.positive("guards.max_overlap_ratio", ratio);

@@ -1,0 +1,97 @@
+//! Periodic boundaries (M.77): a box that repeats along some axes. A pair's separation is its
+//! minimum image, and positions are wrapped back into the box at every neighbour-list build
+//! (between builds they may stray by at most half the skin, which the minimum image absorbs).
+//!
+//! ```text
+//! (M.77)  d_min = d − L ⌊d/L⌉             on each periodic axis (⌊·⌉: nearest integer)
+//!         x ← lo + ((x − lo) mod L)       at each neighbour-list build
+//! ```
+//!
+//! The minimum image is the only image as long as the interaction range (r_i + r_j + skin) is
+//! below L/2; the neighbour search needs at least three cells of `2 r_max + skin` across L, which
+//! `Model::try_build` checks.
+
+use glam::DVec3;
+
+/// The periodic axes of the domain and their extent.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Periodic {
+    /// Lower bound on each periodic axis [m] (unused on the others).
+    pub lower: DVec3,
+    /// Period L on each periodic axis [m]; `None` where the axis is not periodic.
+    pub length: [Option<f64>; 3],
+}
+
+impl Periodic {
+    /// The minimum image of a separation vector (M.77) [m].
+    #[inline]
+    #[must_use]
+    pub fn minimum_image(&self, separation: DVec3) -> DVec3 {
+        let mut d = separation.to_array();
+        for (component, length) in d.iter_mut().zip(self.length) {
+            if let Some(length) = length {
+                *component -= length * (*component / length).round();
+            }
+        }
+        DVec3::from_array(d)
+    }
+
+    /// `x` moved back into the box along the periodic axes (M.77) [m].
+    #[inline]
+    #[must_use]
+    pub fn wrap(&self, position: DVec3) -> DVec3 {
+        let mut x = position.to_array();
+        let lower = self.lower.to_array();
+        for ((component, length), lo) in x.iter_mut().zip(self.length).zip(lower) {
+            if let Some(length) = length {
+                let wrapped = lo + (*component - lo).rem_euclid(length);
+                // rem_euclid can round up to exactly `length`; that point is the lower bound.
+                *component = if wrapped >= lo + length { lo } else { wrapped };
+            }
+        }
+        DVec3::from_array(x)
+    }
+
+    /// Whether axis `axis` (0, 1, 2 for x, y, z) is periodic.
+    #[must_use]
+    pub fn is_periodic(&self, axis: usize) -> bool {
+        self.length[axis].is_some()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn box_xy() -> Periodic {
+        Periodic {
+            lower: DVec3::new(-1.0, 2.0, 0.0),
+            length: [Some(4.0), Some(3.0), None],
+        }
+    }
+
+    #[test]
+    fn the_minimum_image_is_at_most_half_a_period_on_periodic_axes_only() {
+        let p = box_xy();
+        let d = p.minimum_image(DVec3::new(3.5, -2.9, 10.0));
+        assert!((d - DVec3::new(-0.5, 0.1, 10.0)).length() < 1e-12);
+    }
+
+    #[test]
+    fn wrapping_lands_in_the_half_open_box_and_keeps_images_equivalent() {
+        let p = box_xy();
+        for x in [
+            DVec3::new(3.0, 5.0, 7.0),
+            DVec3::new(-5.5, -1.5, -2.0),
+            DVec3::new(-1.0, 2.0, 0.0),
+        ] {
+            let w = p.wrap(x);
+            assert!(
+                (-1.0..3.0).contains(&w.x) && (2.0..5.0).contains(&w.y),
+                "{w}"
+            );
+            assert_eq!(w.z, x.z);
+            assert!(p.minimum_image(w - x).length() < 1e-12);
+        }
+    }
+}
