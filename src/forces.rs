@@ -27,12 +27,26 @@ use crate::thermal::{self, ThermalModel};
 pub struct PairResult {
     /// Force on the pair's first particle [N]; the second gets the opposite.
     pub force_on_first: DVec3,
-    /// Overlap δ [m] (≤ 0 when apart).
+    /// Overlap δ [m]; negative when apart (then −(d² − R²)/(2R), R = r_a + r_b: only the sign is
+    /// meaningful, which spares the square root for the many candidate pairs that do not touch).
     pub overlap: f64,
     /// Mechanical energy the pair lost during this step [J] (M.35): the work of its damper
     /// (and of the sign rules' clipping), plus the drop of stored energy when it bonded (or the
     /// rise when a bond broke). Split half and half between its particles by the gather.
     pub lost: f64,
+}
+
+/// `x_b − x_a` [m], as its minimum image across periodic axes (M.77).
+#[inline]
+#[must_use]
+pub fn pair_separation(
+    periodic: Option<&Periodic>,
+    particles: &Particles,
+    a: usize,
+    b: usize,
+) -> DVec3 {
+    let separation = particles.position[b] - particles.position[a];
+    periodic.map_or(separation, |p| p.minimum_image(separation))
 }
 
 /// Geometry of pair (a, b): unit normal from a to b and the overlap δ = r_a + r_b − |x_b − x_a|,
@@ -45,10 +59,7 @@ pub fn pair_geometry(
     a: usize,
     b: usize,
 ) -> (DVec3, f64) {
-    let mut separation = particles.position[b] - particles.position[a];
-    if let Some(periodic) = periodic {
-        separation = periodic.minimum_image(separation);
-    }
+    let separation = pair_separation(periodic, particles, a, b);
     let distance = separation.length();
     // Coincident centres have no direction; any unit vector keeps the force finite and the
     // blown-up overlap is reported by the run's overlap guard.
@@ -204,21 +215,39 @@ pub fn pair_pass(
                     conductance: Option<&mut f64>,
                     slot: Option<&mut PairTangential>| {
         let (a, b) = (a as usize, b as usize);
-        let (normal, overlap) = pair_geometry(model.periodic.as_ref(), particles, a, b);
-        if overlap <= 0.0 {
+        let separation = pair_separation(model.periodic.as_ref(), particles, a, b);
+        let reach = particles.radius[a] + particles.radius[b];
+        let distance_squared = separation.length_squared();
+        if distance_squared >= reach * reach {
+            // Most candidate pairs are apart: no square root, no division for them. The stored
+            // overlap is −(d² − R²)/(2R), negative like the gap R − d and within (R − d)²/(2R)
+            // of it; only its sign is ever read for an apart pair.
             if let Some(h) = conductance {
                 *h = 0.0;
             }
-            // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is lost.
-            let released = slot.map_or(0.0, |t| std::mem::take(t).spring_energy);
+            // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is lost, and
+            // the torques go to zero. Written only when not already clear, to spare the memory
+            // traffic of the many pairs that stay apart.
+            let released = slot
+                .filter(|t| **t != PairTangential::default())
+                .map_or(0.0, |t| std::mem::take(t).spring_energy);
             *state = BondState::Unbonded;
             *result = PairResult {
                 force_on_first: DVec3::ZERO,
-                overlap,
+                overlap: (reach * reach - distance_squared) / (2.0 * reach),
                 lost: released,
             };
             return;
         }
+        let distance = distance_squared.sqrt();
+        // Coincident centres have no direction; any unit vector keeps the force finite and the
+        // blown-up overlap is reported by the run's overlap guard.
+        let normal = if distance > 0.0 {
+            separation / distance
+        } else {
+            DVec3::X
+        };
+        let overlap = reach - distance;
         let kinematics = PairKinematics {
             overlap,
             overlap_rate: (particles.velocity[a] - particles.velocity[b]).dot(normal),
