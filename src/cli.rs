@@ -132,6 +132,16 @@ fn resume(scene_path: &Path, file: &Path) -> Result<Simulation, String> {
         Model::try_build(&scene).map_err(|e| e.in_file(scene_path).to_string())?;
     let saved = crate::output::hdf5::read_last_frame(file).map_err(|e| e.to_string())?;
     if saved.id != particles.id {
+        // Particles that left [domain] (M.78) are missing from the saved frames: keep the rest.
+        let saved_ids: std::collections::HashSet<u64> = saved.id.iter().copied().collect();
+        let keep: Vec<bool> = particles
+            .id
+            .iter()
+            .map(|id| saved_ids.contains(id))
+            .collect();
+        particles.retain(&keep);
+    }
+    if saved.id != particles.id {
         return Err(format!(
             "{}: its frames hold {} particles, the scene {} builds {}: restart with the scene that made the file",
             file.display(),
@@ -299,6 +309,8 @@ struct LoopOutcome {
     ending: Ending,
     /// Largest dt / stability limit seen at a series row or frame.
     peak_stability_ratio: f64,
+    /// Largest dt / smallest thermal time constant seen at a series row or frame.
+    peak_thermal_ratio: f64,
 }
 
 /// Steps the simulation to the end, writing frames and series. The guards (docs/stability.md)
@@ -316,6 +328,8 @@ fn run_loop(
     let initial = sim.diagnostics();
     let steps = sim.model.steps;
     let mut peak_stability_ratio = initial.stability_ratio;
+    let thermal_ratio = |d: &Diagnostics| d.thermal.map_or(0.0, |t| t.time_step_ratio);
+    let mut peak_thermal_ratio = thermal_ratio(&initial);
     let mut check_and_write =
         |sim: &Simulation, writers: &mut Writers, last: bool| -> Result<(), String> {
             if let Some(trip) = sim.guard_trip() {
@@ -338,6 +352,7 @@ fn run_loop(
             }
             let d = sim.diagnostics();
             peak_stability_ratio = peak_stability_ratio.max(d.stability_ratio);
+            peak_thermal_ratio = peak_thermal_ratio.max(thermal_ratio(&d));
             if let Some(trip) = sim.energy_guard_trip(&d) {
                 return Err(stop(sim, writers, &trip, start.elapsed().as_secs_f64()));
             }
@@ -382,6 +397,7 @@ fn run_loop(
         wall: start.elapsed().as_secs_f64(),
         ending,
         peak_stability_ratio,
+        peak_thermal_ratio,
     })
 }
 
@@ -439,6 +455,13 @@ fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
         d.bonds,
         d.neighbor_builds
     );
+    if d.removed_particles > 0 {
+        say!(
+            "  removed: {} particles left the domain ([domain]); {} remain",
+            d.removed_particles,
+            sim.particles.len()
+        );
+    }
     // The run's own error indicators, beside its wall time (docs/stability.md, docs/accuracy.md).
     let lost = d.dissipated_energy - initial.dissipated_energy;
     say!(
@@ -471,9 +494,9 @@ fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
         let supplied =
             (t1.laser_energy - t0.laser_energy) + (t1.boundary_energy - t0.boundary_energy);
         say!(
-            "  heat balance: stored {stored:+.6e} J vs supplied {supplied:+.6e} J (residual {:.2e} relative); dt over the smallest thermal time constant {:.3e} (last step), {} substeps per step at most",
+            "  heat balance: stored {stored:+.6e} J vs supplied {supplied:+.6e} J (residual {:.2e} relative); dt over the smallest thermal time constant {:.3e} at most (at output steps), {} substeps per step at most",
             t1.heat_residual.abs(),
-            t1.time_step_ratio,
+            outcome.peak_thermal_ratio.max(t1.time_step_ratio),
             sim.thermal.as_ref().map_or(0, |t| t.max_substeps)
         );
     }

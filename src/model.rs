@@ -131,6 +131,27 @@ impl OutputSettings {
     }
 }
 
+/// The box particles may occupy (M.78): a particle whose centre is outside it on a non-periodic
+/// axis is removed at the next neighbour-list build.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Domain {
+    /// Lower corner [m].
+    pub lower: DVec3,
+    /// Upper corner [m].
+    pub upper: DVec3,
+    /// Axes along which the domain is periodic (the bounds do not apply there).
+    pub periodic: [bool; 3],
+}
+
+impl Domain {
+    /// Whether a centre at `x` is inside the box on every non-periodic axis.
+    #[must_use]
+    pub fn contains(&self, x: DVec3) -> bool {
+        let (x, lo, hi) = (x.to_array(), self.lower.to_array(), self.upper.to_array());
+        (0..3).all(|k| self.periodic[k] || (lo[k]..=hi[k]).contains(&x[k]))
+    }
+}
+
 /// The run's guards: it stops, naming the step, the particles and the quantity, when one trips.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Guards {
@@ -246,6 +267,8 @@ pub struct Model {
     pub friction: Option<Friction>,
     /// Periodic axes, if the scene has `[periodic]` (M.77).
     pub periodic: Option<Periodic>,
+    /// The box outside which particles are removed, if the scene has `[domain]` (M.78).
+    pub domain: Option<Domain>,
     /// Settling under gravity before the run, if the scene has `[deposition]`.
     pub deposition: Option<Deposition>,
     /// `[a * n + b]`: normal-law parameters of material pair (a, b); symmetric.
@@ -429,6 +452,13 @@ impl Model {
             output: OutputSettings::resolve(scene, steps),
             friction,
             periodic,
+            domain: scene.domain.as_ref().map(|d| Domain {
+                lower: DVec3::from_array(d.min_corner_m),
+                upper: DVec3::from_array(d.max_corner_m),
+                periodic: periodic.map_or([false; 3], |p| {
+                    [p.is_periodic(0), p.is_periodic(1), p.is_periodic(2)]
+                }),
+            }),
             pair_params,
             wall_params,
         };

@@ -171,3 +171,35 @@ impl Rotation {
         self.wall_contacts.iter().map(|c| c.spring_energy).sum()
     }
 }
+
+/// Keeps the entries of `values` whose `keep` flag is set, in order.
+pub(crate) fn retain_flagged<T>(values: &mut Vec<T>, keep: &[bool]) {
+    let mut flags = keep.iter();
+    values.retain(|_| *flags.next().unwrap_or(&true));
+}
+
+impl Particles {
+    /// Keeps the particles whose `keep` flag is set, in order (ids stay with their particles).
+    pub fn retain(&mut self, keep: &[bool]) {
+        retain_flagged(&mut self.id, keep);
+        retain_flagged(&mut self.material, keep);
+        retain_flagged(&mut self.radius, keep);
+        retain_flagged(&mut self.mass, keep);
+        retain_flagged(&mut self.position, keep);
+        retain_flagged(&mut self.velocity, keep);
+        retain_flagged(&mut self.force, keep);
+        retain_flagged(&mut self.dissipated, keep);
+    }
+}
+
+impl Rotation {
+    /// Keeps the rotation state of the particles whose `keep` flag is set (see
+    /// [`Particles::retain`]).
+    pub fn retain(&mut self, keep: &[bool]) {
+        retain_flagged(&mut self.angular_velocity, keep);
+        retain_flagged(&mut self.torque, keep);
+        let stride = self.wall_stride();
+        let mut slots = keep.iter().flat_map(|k| std::iter::repeat_n(*k, stride));
+        self.wall_contacts.retain(|_| slots.next().unwrap_or(true));
+    }
+}

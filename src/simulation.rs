@@ -13,7 +13,7 @@
 //!    of the next step's pair pass reads them.
 //! 7. Second half kick (M.32).
 
-use crate::contact::{BondState, hertz};
+use crate::contact::{BondState, hertz, rolling};
 use crate::forces::{self, GatherSummary, PairResult, PairTangential};
 use crate::integrate;
 use crate::laser;
@@ -42,6 +42,8 @@ pub struct Simulation {
     peak_overlap_ratio: f64,
     /// Energies this run started from (the balances are measured against them).
     start: StartEnergies,
+    /// What has left the domain so far (M.78).
+    pub removed: Removed,
     /// Angular velocities, torques and wall contact histories, if the scene has friction or
     /// rolling resistance (otherwise nothing is allocated and no rotation pass runs).
     pub rotation: Option<Rotation>,
@@ -54,6 +56,24 @@ pub struct Simulation {
     pub time: f64,
 }
 
+/// What has left the domain (M.78): how many particles, and the energies they took with them,
+/// so that the run's balances still close [J].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Removed {
+    /// Particles removed.
+    pub particles: u64,
+    /// Their kinetic (with rotational) and gravitational energy when removed.
+    pub mechanical_energy: f64,
+    /// The energy they had lost to damping and friction.
+    pub dissipated_energy: f64,
+    /// Their enthalpy when removed.
+    pub enthalpy: f64,
+    /// The laser energy they had absorbed.
+    pub laser_energy: f64,
+    /// The boundary heat they had received.
+    pub boundary_energy: f64,
+}
+
 /// Energies at the start of a run (t = 0, or the step a resumed run starts from) [J].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct StartEnergies {
@@ -61,6 +81,7 @@ struct StartEnergies {
     gravitational: f64,
     elastic: f64,
     dissipated: f64,
+    removed: f64,
     thermal: Option<ThermalDiagnostics>,
 }
 
@@ -92,6 +113,8 @@ pub struct RestartState {
     pub laser: Option<laser::Snapshot>,
     /// Rotation and tangential histories, for scenes with friction or rolling resistance.
     pub rotation: Option<RotationRestart>,
+    /// What has left the domain so far (M.78).
+    pub removed: Removed,
 }
 
 /// Rotational part of [`RestartState`].
@@ -164,6 +187,9 @@ pub struct Diagnostics {
     pub energy_residual: f64,
     /// Neighbour-list builds so far.
     pub neighbor_builds: u64,
+    /// Particles removed so far because they left the domain (M.78); their energies stay in the
+    /// totals (dissipated, thermal) and in the balances.
+    pub removed_particles: u64,
     /// Thermal quantities, for scenes with `[thermal]`.
     pub thermal: Option<ThermalDiagnostics>,
 }
@@ -243,6 +269,7 @@ impl Simulation {
             start: StartEnergies::default(),
             rotation,
             tangential: Vec::new(),
+            removed: Removed::default(),
             step: 0,
             time: 0.0,
         };
@@ -265,6 +292,46 @@ impl Simulation {
         self.mark_start();
     }
 
+    /// Removes the particles whose centre has left `[domain]` (M.78), counting them and the
+    /// energies they carry, so the balances still close. Runs at neighbour-list builds, which a
+    /// particle moving away triggers once it has moved half the skin.
+    fn remove_escaped(&mut self) {
+        let Some(domain) = self.model.domain else {
+            return;
+        };
+        let p = &self.particles;
+        let keep: Vec<bool> = p.position.iter().map(|x| domain.contains(*x)).collect();
+        if keep.iter().all(|k| *k) {
+            return;
+        }
+        for k in (0..p.len()).filter(|&k| !keep[k]) {
+            let rotational = self.rotation.as_ref().map_or(0.0, |r| {
+                0.5 * rolling::sphere_inertia(p.mass[k], p.radius[k])
+                    * r.angular_velocity[k].length_squared()
+            });
+            let removed = &mut self.removed;
+            removed.particles += 1;
+            removed.mechanical_energy += 0.5 * p.mass[k] * p.velocity[k].length_squared()
+                + rotational
+                - p.mass[k] * self.model.gravity.dot(p.position[k]);
+            removed.dissipated_energy += p.dissipated[k];
+            if let Some(t) = &self.thermal {
+                removed.enthalpy += t.enthalpy[k];
+                removed.laser_energy += t.laser_energy[k];
+                removed.boundary_energy += t.boundary_energy[k];
+            }
+        }
+        self.particles.retain(&keep);
+        if let Some(t) = &mut self.thermal {
+            t.retain(&keep);
+        }
+        if let Some(r) = &mut self.rotation {
+            r.retain(&keep);
+        }
+        // The last ray cast named particles by index.
+        self.laser_snapshot = laser::Snapshot::default();
+    }
+
     /// Takes the current state as the reference of the run's energy balances.
     fn mark_start(&mut self) {
         let d = self.diagnostics();
@@ -274,6 +341,7 @@ impl Simulation {
             gravitational: d.gravitational_energy,
             elastic: d.elastic_energy,
             dissipated: d.dissipated_energy,
+            removed: self.removed.mechanical_energy,
             thermal: d.thermal,
         };
     }
@@ -301,6 +369,7 @@ impl Simulation {
                 .as_ref()
                 .map(|_| self.laser_snapshot.clone()),
             rotation: self.rotation.as_ref().map(|r| self.rotation_restart(r)),
+            removed: self.removed,
         }
     }
 
@@ -437,6 +506,7 @@ impl Simulation {
             start: StartEnergies::default(),
             rotation,
             tangential: Vec::new(),
+            removed: state.removed,
             step: state.step,
             time: 0.0,
         };
@@ -531,6 +601,7 @@ impl Simulation {
     }
 
     fn rebuild_neighbors(&mut self) {
+        self.remove_escaped();
         if let Some(periodic) = &self.model.periodic {
             // (M.77): back into the box; the neighbour search and the output see wrapped
             // positions, and the reference positions of the next rebuild check are these.
@@ -750,7 +821,8 @@ impl Simulation {
             step: self.step,
             time: self.time,
             kinetic_energy: p.kinetic_energy(),
-            dissipated_energy: p.dissipated_energy(),
+            dissipated_energy: p.dissipated_energy() + self.removed.dissipated_energy,
+            removed_particles: self.removed.particles,
             gravitational_energy: p.gravitational_energy(self.model.gravity),
             neighbor_builds: self.neighbors.builds,
             ..Diagnostics::default()
@@ -799,9 +871,9 @@ impl Simulation {
                 + rotation.wall_spring_energy();
         }
         d.thermal = self.thermal.as_ref().map(|t| ThermalDiagnostics {
-            enthalpy: t.total_enthalpy(),
-            laser_energy: t.total_laser_energy(),
-            boundary_energy: t.total_boundary_energy(),
+            enthalpy: t.total_enthalpy() + self.removed.enthalpy,
+            laser_energy: t.total_laser_energy() + self.removed.laser_energy,
+            boundary_energy: t.total_boundary_energy() + self.removed.boundary_energy,
             max_temperature: t
                 .temperature
                 .iter()
@@ -827,8 +899,12 @@ impl Simulation {
     /// current energies, so that a blow-up shows as a large residual instead of saturating at 1).
     fn close_balances(&self, d: &mut Diagnostics) {
         let start = &self.start;
-        let created = d.mechanical_energy() + d.dissipated_energy
-            - (start.kinetic + start.gravitational + start.elastic + start.dissipated);
+        let created = d.mechanical_energy() + d.dissipated_energy + self.removed.mechanical_energy
+            - (start.kinetic
+                + start.gravitational
+                + start.elastic
+                + start.dissipated
+                + start.removed);
         let scale = [
             start.kinetic,
             start.elastic,

@@ -29,7 +29,7 @@ use super::frame::{Frame, Values};
 use super::xdmf::{self, FrameMeta, POINT_INDEX};
 use super::{OutputError, SeriesColumn, SeriesKind, SeriesValue, series_columns};
 use crate::laser::Snapshot;
-use crate::simulation::{RestartState, RotationRestart, ThermalRestart};
+use crate::simulation::{Removed, RestartState, RotationRestart, ThermalRestart};
 
 /// Value of the root attribute `format`.
 pub const FORMAT_NAME: &str = "am-sim";
@@ -413,6 +413,19 @@ fn write_restart(group: &Group, state: &RestartState) -> hdf5::Result<()> {
         .with_data(ArrayView2::from_shape((force.len(), 3), force.as_flattened()).expect("N×3"))
         .create("force")?;
     plain("dissipated_energy", ArrayView1::from(&state.dissipated))?;
+    if state.removed.particles > 0 {
+        let r = &state.removed;
+        #[allow(clippy::cast_precision_loss)]
+        let removed = [
+            r.particles as f64,
+            r.mechanical_energy,
+            r.dissipated_energy,
+            r.enthalpy,
+            r.laser_energy,
+            r.boundary_energy,
+        ];
+        plain("removed", ArrayView1::from(&removed))?;
+    }
     let bonded: Vec<[u64; 2]> = state.bonded.iter().map(|&(a, b)| [a, b]).collect();
     group
         .new_dataset_builder()
@@ -588,6 +601,20 @@ pub fn read_last_frame(path: &Path) -> Result<SavedRun> {
                 thermal,
                 laser,
                 rotation,
+                removed: if restart.link_exists("removed") {
+                    let r: Vec<f64> = restart.dataset("removed")?.read_raw()?;
+                    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                    Removed {
+                        particles: r[0] as u64,
+                        mechanical_energy: r[1],
+                        dissipated_energy: r[2],
+                        enthalpy: r[3],
+                        laser_energy: r[4],
+                        boundary_energy: r[5],
+                    }
+                } else {
+                    Removed::default()
+                },
             },
         })
     };

@@ -70,7 +70,7 @@ const fn column(name: &'static str, unit: &'static str, kind: SeriesKind) -> Ser
 }
 
 /// Columns of every run.
-pub const SERIES_COLUMNS: [SeriesColumn; 16] = [
+pub const SERIES_COLUMNS: [SeriesColumn; 17] = [
     column("step", "1", SeriesKind::U64),
     column("time_s", "s", SeriesKind::F64),
     column("kinetic_energy_j", "J", SeriesKind::F64),
@@ -87,6 +87,7 @@ pub const SERIES_COLUMNS: [SeriesColumn; 16] = [
     column("energy_residual", "1", SeriesKind::F64),
     column("peak_overlap_ratio", "1", SeriesKind::F64),
     column("stability_ratio", "1", SeriesKind::F64),
+    column("removed_particles", "1", SeriesKind::U64),
 ];
 
 /// Columns added for scenes with `[thermal]` (and only for them).
@@ -142,6 +143,7 @@ pub fn series_row(d: &Diagnostics, wall_time_s: f64) -> Vec<SeriesValue> {
         F64(d.energy_residual),
         F64(d.peak_overlap_ratio),
         F64(d.stability_ratio),
+        U64(d.removed_particles),
     ];
     if let Some(t) = d.thermal {
         row.extend([

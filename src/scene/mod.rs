@@ -64,6 +64,19 @@ pub struct Scene {
     pub guards: Option<GuardsConfig>,
     /// `[periodic]`: axes along which the domain repeats (M.77); absent: none.
     pub periodic: Option<PeriodicConfig>,
+    /// `[domain]`: the box particles may occupy; those that leave it are removed (M.78).
+    pub domain: Option<DomainConfig>,
+}
+
+/// `[domain]`: a particle whose centre leaves this box is removed from the run and counted
+/// (M.78). Along periodic axes the box is not used (particles wrap instead).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DomainConfig {
+    /// Lower corner [m].
+    pub min_corner_m: [f64; 3],
+    /// Upper corner [m].
+    pub max_corner_m: [f64; 3],
 }
 
 /// `[periodic]`: the bounds `[lower, upper]` of each periodic axis [m]; an axis not given is not

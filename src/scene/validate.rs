@@ -169,6 +169,21 @@ pub fn validate(scene: &Scene) -> Vec<Violation> {
         }
     }
 
+    if let Some(domain) = &scene.domain {
+        c.finite_vector("domain.min_corner_m", domain.min_corner_m);
+        c.finite_vector("domain.max_corner_m", domain.max_corner_m);
+        if (0..3).any(|k| domain.max_corner_m[k] <= domain.min_corner_m[k]) {
+            c.fail(
+                "domain.max_corner_m",
+                format!("{:?}", domain.max_corner_m),
+                format!(
+                    "must exceed domain.min_corner_m = {:?} on every axis",
+                    domain.min_corner_m
+                ),
+            );
+        }
+    }
+
     if let Some(guards) = &scene.guards {
         if let Some(ratio) = guards.max_overlap_ratio {
             c.positive("guards.max_overlap_ratio", ratio);

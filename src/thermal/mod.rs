@@ -137,6 +137,26 @@ pub struct ThermalState {
     pub max_substeps: u32,
 }
 
+impl ThermalState {
+    /// Keeps the thermal state of the particles whose `keep` flag is set (see
+    /// `Particles::retain`); the per-pair conductances are rebuilt with the neighbour list.
+    pub fn retain(&mut self, keep: &[bool]) {
+        use crate::particles::retain_flagged;
+        retain_flagged(&mut self.temperature, keep);
+        retain_flagged(&mut self.enthalpy, keep);
+        retain_flagged(&mut self.heat_capacity, keep);
+        retain_flagged(&mut self.latent_heat, keep);
+        retain_flagged(&mut self.melting_point, keep);
+        retain_flagged(&mut self.melted, keep);
+        retain_flagged(&mut self.laser_power, keep);
+        retain_flagged(&mut self.heat_flow, keep);
+        retain_flagged(&mut self.total_conductance, keep);
+        retain_flagged(&mut self.boundary_flow, keep);
+        retain_flagged(&mut self.laser_energy, keep);
+        retain_flagged(&mut self.boundary_energy, keep);
+    }
+}
+
 /// Temperature of a particle from its enthalpy (M.48) [K]:
 ///
 /// ```text
