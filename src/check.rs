@@ -6,7 +6,7 @@
 
 use std::fmt::{self, Write as _};
 
-use crate::contact::{NormalParams, hertz};
+use crate::contact::{NormalParams, hertz, tangential};
 use crate::integrate;
 use crate::model::Model;
 use crate::particles::Particles;
@@ -115,24 +115,29 @@ fn friction_check(
 ) -> Option<FrictionCheck> {
     let friction = model.friction.as_ref()?;
     let n = u16::try_from(model.materials.len()).unwrap_or(u16::MAX);
-    let mut ratios = Vec::new();
+    // (G*, E*) of every material pair and material–wall pair.
+    let mut moduli = Vec::new();
     for a in 0..n {
         for b in 0..n {
-            ratios.push(
-                4.0 * friction.pair(a, b).effective_shear_modulus
-                    / model.pair_params(a, b).effective_modulus,
-            );
+            moduli.push((
+                friction.pair(a, b).effective_shear_modulus,
+                model.pair_params(a, b).effective_modulus,
+            ));
         }
         for w in 0..model.walls.len() {
-            ratios.push(
-                4.0 * friction.wall(w, a).effective_shear_modulus
-                    / model.wall_params(w, a).effective_modulus,
-            );
+            moduli.push((
+                friction.wall(w, a).effective_shear_modulus,
+                model.wall_params(w, a).effective_modulus,
+            ));
         }
     }
-    let lo = ratios.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = ratios.iter().copied().fold(0.0, f64::max);
-    let time_factor = (2.0 / 7.0 / hi).sqrt();
+    let ratios = moduli.iter().map(|(shear, normal)| 4.0 * shear / normal);
+    let lo = ratios.clone().fold(f64::INFINITY, f64::min);
+    let hi = ratios.fold(0.0, f64::max);
+    let time_factor = moduli
+        .iter()
+        .map(|&(shear, normal)| tangential::sticking_time_factor(shear, normal))
+        .fold(f64::INFINITY, f64::min);
     let shortest = pairs
         .iter()
         .map(|row| row.contact_time)

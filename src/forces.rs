@@ -61,14 +61,22 @@ pub fn pair_geometry(
 ) -> (DVec3, f64) {
     let separation = pair_separation(periodic, particles, a, b);
     let distance = separation.length();
-    // Coincident centres have no direction; any unit vector keeps the force finite and the
-    // blown-up overlap is reported by the run's overlap guard.
-    let normal = if distance > 0.0 {
+    (
+        unit_normal(separation, distance),
+        particles.radius[a] + particles.radius[b] - distance,
+    )
+}
+
+/// `separation / distance`, the unit normal from a to b. Coincident centres have no direction;
+/// any unit vector keeps the force finite, and the blown-up overlap is reported by the run's
+/// overlap guard.
+#[inline]
+fn unit_normal(separation: DVec3, distance: f64) -> DVec3 {
+    if distance > 0.0 {
         separation / distance
     } else {
         DVec3::X
-    };
-    (normal, particles.radius[a] + particles.radius[b] - distance)
+    }
 }
 
 /// What the pair pass needs and fills for scenes with `[thermal]`.
@@ -240,13 +248,7 @@ pub fn pair_pass(
             return;
         }
         let distance = distance_squared.sqrt();
-        // Coincident centres have no direction; any unit vector keeps the force finite and the
-        // blown-up overlap is reported by the run's overlap guard.
-        let normal = if distance > 0.0 {
-            separation / distance
-        } else {
-            DVec3::X
-        };
+        let normal = unit_normal(separation, distance);
         let overlap = reach - distance;
         let kinematics = PairKinematics {
             overlap,

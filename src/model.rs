@@ -408,7 +408,6 @@ impl Model {
         }
 
         let friction = Friction::build(scene, &materials, &walls);
-        let periodic = periodic_box(scene, &particles)?;
 
         let sim = &scene.simulation;
         // Round-off in duration/dt (5e-3/5e-7 = 10000.000000000002) must not add a step.
@@ -419,13 +418,15 @@ impl Model {
             .iter()
             .copied()
             .fold(f64::INFINITY, f64::min);
+        // 10 % of the smallest diameter: LIGGGHTS and LAMMPS use 0.1-0.3 d for granular beds.
+        let skin = sim.skin_m.unwrap_or(0.2 * smallest_radius);
+        let periodic = periodic_box(scene, &particles, skin)?;
         let model = Self {
             title: scene.scene.title.clone(),
             dt: sim.dt_s,
             steps,
             gravity: DVec3::from_array(sim.gravity_m_s2),
-            // 10 % of the smallest diameter: LIGGGHTS and LAMMPS use 0.1-0.3 d for granular beds.
-            skin: sim.skin_m.unwrap_or(0.2 * smallest_radius),
+            skin,
             materials,
             walls,
             bond_criterion: match scene.bond.as_ref().map(|b| (b.criterion, b.melting_rule)) {
@@ -468,17 +469,15 @@ impl Model {
 
 /// The periodic box of `[periodic]`, checked against the particles: the neighbour search needs
 /// at least three cells of `2 r_max + skin` across each period (M.77).
-fn periodic_box(scene: &Scene, particles: &Particles) -> Result<Option<Periodic>, SceneError> {
+fn periodic_box(
+    scene: &Scene,
+    particles: &Particles,
+    skin: f64,
+) -> Result<Option<Periodic>, SceneError> {
     let Some(config) = &scene.periodic else {
         return Ok(None);
     };
     let r_max = particles.radius.iter().copied().fold(0.0, f64::max);
-    let r_min = particles
-        .radius
-        .iter()
-        .copied()
-        .fold(f64::INFINITY, f64::min);
-    let skin = scene.simulation.skin_m.unwrap_or(0.2 * r_min);
     let cell = 2.0 * r_max + skin;
     let mut periodic = Periodic {
         lower: DVec3::ZERO,

@@ -13,7 +13,7 @@
 //!    of the next step's pair pass reads them.
 //! 7. Second half kick (M.32).
 
-use crate::contact::{BondState, hertz, rolling};
+use crate::contact::{BondState, NormalParams, hertz, rolling, tangential};
 use crate::forces::{self, GatherSummary, PairResult, PairTangential};
 use crate::integrate;
 use crate::laser;
@@ -194,12 +194,26 @@ pub struct Diagnostics {
     pub thermal: Option<ThermalDiagnostics>,
 }
 
-/// How much a sticking tangential spring lowers a contact's stability limit (M.64, M.70): it
-/// oscillates with k_t = (4G*/E*) k_n against the reduced mass 2/7 m* (rotation included), so
-/// ω_t/ω_n = √(7/2 · 4G*/E*); the limit scales by the inverse where that exceeds 1.
-fn tangential_factor(effective_shear_modulus: f64, effective_modulus: f64) -> f64 {
-    let ratio = (3.5 * 4.0 * effective_shear_modulus / effective_modulus).sqrt();
-    1.0 / ratio.max(1.0)
+/// One touching contact of the current state (see `Simulation::for_each_contact`).
+struct Contact<'a> {
+    /// The particle (index), or the pair's first particle.
+    first: usize,
+    /// The pair's second particle, for a particle pair.
+    second: Option<usize>,
+    /// The wall, for a wall contact.
+    wall: Option<usize>,
+    /// δ > 0 [m].
+    overlap: f64,
+    /// The smaller radius of the two (the particle's, against a wall) [m].
+    smaller_radius: f64,
+    /// r* [m].
+    effective_radius: f64,
+    /// m* [kg].
+    effective_mass: f64,
+    /// Normal-law parameters of the pair or of the particle against the wall.
+    params: &'a NormalParams,
+    /// Whether the pair is bonded (never for a wall).
+    bonded: bool,
 }
 
 /// The contact that limits the time step most (M.70).
@@ -827,43 +841,27 @@ impl Simulation {
             neighbor_builds: self.neighbors.builds,
             ..Diagnostics::default()
         };
-        let mut note_overlap = |overlap: f64, radius: f64| {
-            d.max_overlap = d.max_overlap.max(overlap);
-            d.max_overlap_ratio = d.max_overlap_ratio.max(overlap / radius);
-        };
-        for (pair, (result, state)) in self
-            .neighbors
-            .pairs
-            .iter()
-            .zip(self.pair_results.iter().zip(&self.bond_states))
-        {
-            if result.overlap <= 0.0 {
-                continue;
+        let mut tightest = f64::INFINITY;
+        self.for_each_contact(|contact| {
+            if contact.second.is_some() {
+                d.contacts += 1;
+            } else {
+                d.wall_contacts += 1;
             }
-            let (a, b) = (pair[0] as usize, pair[1] as usize);
-            d.contacts += 1;
-            note_overlap(result.overlap, p.radius[a].min(p.radius[b]));
-            let params = self.model.pair_params(p.material[a], p.material[b]);
-            let r_star = hertz::effective_radius(p.radius[a], p.radius[b]);
-            d.elastic_energy += match (state, &params.bond) {
-                (BondState::Bonded, Some(bond)) => {
+            d.max_overlap = d.max_overlap.max(contact.overlap);
+            d.max_overlap_ratio = d
+                .max_overlap_ratio
+                .max(contact.overlap / contact.smaller_radius);
+            let (e_star, r_star) = (contact.params.effective_modulus, contact.effective_radius);
+            d.elastic_energy += match (contact.bonded, &contact.params.bond) {
+                (true, Some(bond)) => {
                     d.bonds += 1;
-                    bond.elastic_energy(params.effective_modulus, r_star, result.overlap)
+                    bond.elastic_energy(e_star, r_star, contact.overlap)
                 }
-                _ => hertz::elastic_energy(params.effective_modulus, r_star, result.overlap),
+                _ => hertz::elastic_energy(e_star, r_star, contact.overlap),
             };
-        }
-        for k in 0..p.len() {
-            for w in 0..self.model.walls.len() {
-                let overlap = forces::wall_overlap(&self.model, p, k, w);
-                if overlap > 0.0 {
-                    d.wall_contacts += 1;
-                    note_overlap(overlap, p.radius[k]);
-                    let e_star = self.model.wall_params(w, p.material[k]).effective_modulus;
-                    d.elastic_energy += hertz::elastic_energy(e_star, p.radius[k], overlap);
-                }
-            }
-        }
+            tightest = tightest.min(self.stability_limit_of(&contact));
+        });
         if let Some(rotation) = &self.rotation {
             // (M.63): rotation is kinetic energy, the tangential springs store elastic energy.
             d.kinetic_energy += rotation.kinetic_energy(p);
@@ -885,9 +883,7 @@ impl Simulation {
             heat_residual: 0.0,
         });
         d.peak_overlap_ratio = self.peak_overlap_ratio.max(d.max_overlap_ratio);
-        d.stability_ratio = self
-            .stability_limit_now()
-            .map_or(0.0, |limit| self.model.dt / limit.dt_max);
+        d.stability_ratio = self.model.dt / tightest;
         self.close_balances(&mut d);
         d
     }
@@ -1005,17 +1001,66 @@ impl Simulation {
     /// or eq. 24 when bonded) and its damping ratio. `None` without contacts.
     #[must_use]
     pub fn stability_limit_now(&self) -> Option<StabilityLimit> {
-        let p = &self.particles;
         let mut tightest: Option<StabilityLimit> = None;
-        let mut consider = |limit: f64, ids: (u64, Option<u64>), overlap: f64| {
+        self.for_each_contact(|contact| {
+            let limit = self.stability_limit_of(&contact);
             if tightest.is_none_or(|t| limit < t.dt_max) {
+                let p = &self.particles;
                 tightest = Some(StabilityLimit {
                     dt_max: limit,
-                    ids,
-                    overlap,
+                    ids: (p.id[contact.first], contact.second.map(|b| p.id[b])),
+                    overlap: contact.overlap,
                 });
             }
+        });
+        tightest
+    }
+
+    /// The stability limit (M.70) of one contact: its tangent stiffness at its overlap (Hertz
+    /// M.5, or eq. 24 when bonded) with its damping ratio, lowered by the sticking tangential
+    /// spring (M.64) when the scene has friction.
+    fn stability_limit_of(&self, contact: &Contact<'_>) -> f64 {
+        let p = &self.particles;
+        let (a, params) = (contact.first, contact.params);
+        let (stiffness, damping_ratio) = match (contact.bonded, &params.bond) {
+            (true, Some(bond)) => (
+                bond.stiffness(
+                    params.effective_modulus,
+                    contact.effective_radius,
+                    contact.overlap,
+                ),
+                bond.damping_ratio,
+            ),
+            _ => (
+                hertz::stiffness(
+                    params.effective_modulus,
+                    contact.effective_radius,
+                    contact.overlap,
+                ),
+                params.damping_ratio,
+            ),
         };
+        let sticking = self.model.friction.as_ref().map_or(1.0, |f| {
+            let friction = match (contact.second, contact.wall) {
+                (Some(b), _) => f.pair(p.material[a], p.material[b]),
+                (None, Some(w)) => f.wall(w, p.material[a]),
+                (None, None) => unreachable!("a contact has a second particle or a wall"),
+            };
+            tangential::sticking_time_factor(
+                friction.effective_shear_modulus,
+                params.effective_modulus,
+            )
+            .min(1.0)
+        });
+        sticking * integrate::stability_limit(stiffness, contact.effective_mass, damping_ratio)
+    }
+
+    /// Visits every touching contact of the current state: the particle pairs with δ > 0 in
+    /// the neighbour list's order, then every particle's wall contacts (a wall is the limit
+    /// r, m → ∞: r* = r, m* = m). The measurements of the state (diagnostics, stability limit)
+    /// all walk the contacts this way, so they sum in the same order.
+    fn for_each_contact(&self, mut visit: impl FnMut(Contact<'_>)) {
+        let p = &self.particles;
         for (pair, (result, state)) in self
             .neighbors
             .pairs
@@ -1026,58 +1071,36 @@ impl Simulation {
                 continue;
             }
             let (a, b) = (pair[0] as usize, pair[1] as usize);
-            let params = self.model.pair_params(p.material[a], p.material[b]);
-            let r_star = hertz::effective_radius(p.radius[a], p.radius[b]);
-            let m_star = hertz::effective_mass(p.mass[a], p.mass[b]);
-            let (stiffness, damping_ratio) = match (state, &params.bond) {
-                (BondState::Bonded, Some(bond)) => (
-                    bond.stiffness(params.effective_modulus, r_star, result.overlap),
-                    bond.damping_ratio,
-                ),
-                _ => (
-                    hertz::stiffness(params.effective_modulus, r_star, result.overlap),
-                    params.damping_ratio,
-                ),
-            };
-            let tangential = self.model.friction.as_ref().map_or(1.0, |f| {
-                tangential_factor(
-                    f.pair(p.material[a], p.material[b]).effective_shear_modulus,
-                    params.effective_modulus,
-                )
+            visit(Contact {
+                first: a,
+                second: Some(b),
+                wall: None,
+                overlap: result.overlap,
+                smaller_radius: p.radius[a].min(p.radius[b]),
+                effective_radius: hertz::effective_radius(p.radius[a], p.radius[b]),
+                effective_mass: hertz::effective_mass(p.mass[a], p.mass[b]),
+                params: self.model.pair_params(p.material[a], p.material[b]),
+                bonded: *state == BondState::Bonded,
             });
-            consider(
-                tangential * integrate::stability_limit(stiffness, m_star, damping_ratio),
-                (p.id[a], Some(p.id[b])),
-                result.overlap,
-            );
         }
         for k in 0..p.len() {
             for w in 0..self.model.walls.len() {
                 let overlap = forces::wall_overlap(&self.model, p, k, w);
                 if overlap > 0.0 {
-                    let params = self.model.wall_params(w, p.material[k]);
-                    let stiffness =
-                        hertz::stiffness(params.effective_modulus, p.radius[k], overlap);
-                    let tangential = self.model.friction.as_ref().map_or(1.0, |f| {
-                        tangential_factor(
-                            f.wall(w, p.material[k]).effective_shear_modulus,
-                            params.effective_modulus,
-                        )
-                    });
-                    consider(
-                        tangential
-                            * integrate::stability_limit(
-                                stiffness,
-                                p.mass[k],
-                                params.damping_ratio,
-                            ),
-                        (p.id[k], None),
+                    visit(Contact {
+                        first: k,
+                        second: None,
+                        wall: Some(w),
                         overlap,
-                    );
+                        smaller_radius: p.radius[k],
+                        effective_radius: p.radius[k],
+                        effective_mass: p.mass[k],
+                        params: self.model.wall_params(w, p.material[k]),
+                        bonded: false,
+                    });
                 }
             }
         }
-        tightest
     }
 
     /// Smallest thermal time constant `min C_i/G_i` [s] at the current state (M.49), for scenes

@@ -31,6 +31,21 @@ pub fn effective_shear_modulus(
     1.0 / ((2.0 - poisson_i) / shear_i + (2.0 - poisson_j) / shear_j)
 }
 
+/// How much faster a sticking contact oscillates tangentially than normally, as the ratio of
+/// their times (M.64):
+///
+/// ```text
+/// t_t / t_n = √(2/7 · k_n/k_t),   k_t/k_n = 4 G*/E*      [–]
+/// ```
+///
+/// The tangential spring k_t = 8 G* a acts against the reduced mass 2/7 m* (rotation included),
+/// the normal one, k_n = 2 E* a, against m*. 0.589 for ν = 0.3. It scales the contact time and,
+/// below 1, the stability limit of M.70.
+#[must_use]
+pub fn sticking_time_factor(effective_shear_modulus: f64, effective_modulus: f64) -> f64 {
+    (2.0 / 7.0 * effective_modulus / (4.0 * effective_shear_modulus)).sqrt()
+}
+
 /// Mindlin tangential stiffness (M.57): `k_t = 8 G* a`, `a = √(r* δ)` [N/m]; 0 for δ ≤ 0.
 #[must_use]
 pub fn stiffness(effective_shear_modulus: f64, effective_radius: f64, overlap: f64) -> f64 {
