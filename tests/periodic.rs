@@ -117,21 +117,13 @@ y_m = [0.0, 1.61e-2]
 z_m = [0.0, 1.61e-2]
 "#,
     );
-    let mut seed = 11u64;
-    let mut uniform = || {
-        seed = seed
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        #[allow(clippy::cast_precision_loss)]
-        let u = (seed >> 11) as f64 / (1u64 << 53) as f64;
-        2.0 * u - 1.0
-    };
+    let mut rng = am_sim::bed::rng::SplitMix64(11);
     for i in 0..7 {
         for j in 0..7 {
             for k in 0..7 {
                 let x = DVec3::new(f64::from(i), f64::from(j), f64::from(k)) * 2.3e-3
                     + DVec3::splat(1.2e-3);
-                let v = DVec3::new(uniform(), uniform(), uniform());
+                let v = DVec3::new(rng.symmetric(), rng.symmetric(), rng.symmetric());
                 text.push_str(&format!(
                     "[[particles]]\nposition_m = [{:e}, {:e}, {:e}]\nvelocity_m_s = [{:e}, {:e}, {:e}]\nradius_m = {RADIUS:e}\nmaterial = \"m\"\n",
                     x.x, x.y, x.z, v.x, v.y, v.z
