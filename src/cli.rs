@@ -131,25 +131,29 @@ fn resume(scene_path: &Path, file: &Path) -> Result<Simulation, String> {
     let (model, mut particles) =
         Model::try_build(&scene).map_err(|e| e.in_file(scene_path).to_string())?;
     let saved = crate::output::hdf5::read_last_frame(file).map_err(|e| e.to_string())?;
-    if saved.id != particles.id {
-        // Particles that left [domain] (M.78) are missing from the saved frames: keep the rest.
-        let saved_ids: std::collections::HashSet<u64> = saved.id.iter().copied().collect();
-        let keep: Vec<bool> = particles
-            .id
-            .iter()
-            .map(|id| saved_ids.contains(id))
-            .collect();
-        particles.retain(&keep);
-    }
-    if saved.id != particles.id {
+    // The frames hold the particles in the run's storage order (spatially sorted, without those
+    // that left [domain], M.78): put the scene's particles in that order, by id.
+    let index_of: std::collections::HashMap<u64, u32> = particles
+        .id
+        .iter()
+        .enumerate()
+        .map(|(k, id)| (*id, u32::try_from(k).expect("fewer than 2^32 particles")))
+        .collect();
+    let order: Option<Vec<u32>> = saved
+        .id
+        .iter()
+        .map(|id| index_of.get(id).copied())
+        .collect();
+    let Some(order) = order else {
         return Err(format!(
-            "{}: its frames hold {} particles, the scene {} builds {}: restart with the scene that made the file",
+            "{}: its frames hold particle ids the scene {} does not build ({} particles saved, {} built): restart with the scene that made the file",
             file.display(),
-            saved.id.len(),
             scene_path.display(),
+            saved.id.len(),
             particles.len()
         ));
-    }
+    };
+    particles.select(&order);
     if saved.scene != std::fs::read_to_string(scene_path).unwrap_or_default() {
         eprintln!(
             "warning: {} differs from the scene stored in {}: the run continues with {}",

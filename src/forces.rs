@@ -1,16 +1,16 @@
-//! The parallel force passes. This is the only place that loops over pairs.
+//! The force pass: the only place that loops over pairs for forces.
 //!
-//! 1. **Pair pass** (parallel over pairs): each pair reads positions and velocities, calls the pure
-//!    contact law, and writes only its own result slot and its own bond state.
-//! 2. **Gather pass** (parallel over particles): each particle sums its incident pair results in
-//!    the fixed CSR order of the neighbour list, then adds gravity and wall contacts, and writes
-//!    only its own force.
-//! 3. **Torque pass** (parallel over particles, only with friction or rolling resistance): each
-//!    particle sums the torques of its incident pair slots in the same CSR order and adds its
-//!    walls' tangential forces and torques, writing only its own slots ([`torque_gather`]).
+//! 1. **Pair pass**, a coloured traversal of the neighbour list
+//!    ([`NeighborList::for_each_owner`]): each pair is evaluated once by its owner, which calls
+//!    the pure contact laws and adds the result to both particles (Newton's third law), together
+//!    with the torques, the energy the pair lost and, with `[thermal]`, the heat it conducts. The
+//!    pair's own history (bond state, tangential spring, conductance) lives in its slot.
+//! 2. **Particle pass** (parallel over particles): gravity, wall contacts, boundary heat and the
+//!    per-step checks, each particle writing only its own entries.
 //!
-//! No atomics, no locks, no thread-local buffers: each pair is computed once, its history lives in
-//! one place, and the sums are bitwise identical for any thread count.
+//! The colouring keeps concurrent writes disjoint, so there are no atomics, locks or per-thread
+//! copies, and every sum is formed in an order fixed by the list: the result is bitwise the same
+//! for any thread count.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -20,21 +20,8 @@ use crate::model::Model;
 use crate::neighbor::NeighborList;
 use crate::particles::{Particles, Rotation, WallTangential};
 use crate::periodic::Periodic;
+use crate::scatter::{self, PerParticle, PerSlot, Scatter, Window};
 use crate::thermal::{self, ThermalModel};
-
-/// What a pair contributes, stored per pair slot between the two passes.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct PairResult {
-    /// Force on the pair's first particle [N]; the second gets the opposite.
-    pub force_on_first: DVec3,
-    /// Overlap δ [m]; negative when apart (then −(d² − R²)/(2R), R = r_a + r_b: only the sign is
-    /// meaningful, which spares the square root for the many candidate pairs that do not touch).
-    pub overlap: f64,
-    /// Mechanical energy the pair lost during this step [J] (M.35): the work of its damper
-    /// (and of the sign rules' clipping), plus the drop of stored energy when it bonded (or the
-    /// rise when a bond broke). Split half and half between its particles by the gather.
-    pub lost: f64,
-}
 
 /// `x_b − x_a` [m], as its minimum image across periodic axes (M.77).
 #[inline]
@@ -79,38 +66,59 @@ fn unit_normal(separation: DVec3, distance: f64) -> DVec3 {
     }
 }
 
-/// What the pair pass needs and fills for scenes with `[thermal]`.
+/// Per pair slot, for scenes with friction or rolling resistance: the tangential history,
+/// carried over neighbour-list rebuilds by the pair's ids.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PairTangential {
+    /// Tangential displacement ξ [m] of the owner relative to the partner, world frame, turned
+    /// into the current tangent plane at each use (M.58). It changes sign when the pair's owner
+    /// changes ends at a rebuild.
+    pub history: DVec3,
+    /// Spring energy `½ k_t |ξ|²` at the last evaluation [J] (M.63).
+    pub spring_energy: f64,
+}
+
+impl PairTangential {
+    /// The same spring seen from the other particle.
+    #[must_use]
+    pub fn turned(self) -> Self {
+        Self {
+            history: -self.history,
+            ..self
+        }
+    }
+}
+
+/// What the force pass needs and fills for scenes with `[thermal]`: the contact conductances
+/// and the first thermal substep's heat balance (M.47), computed with the forces.
 #[derive(Debug)]
-pub struct PairHeat<'a> {
+pub struct PassHeat<'a> {
     /// Thermal parameters.
     pub model: &'a ThermalModel,
     /// Latched melting flags (the bond criterion reads them).
     pub melted: &'a [bool],
-    /// Per pair slot: the contact conductance, written by the pass [W/K].
+    /// Temperatures at the start of the step [K].
+    pub temperature: &'a [f64],
+    /// Absorbed laser power [W].
+    pub laser_power: &'a [f64],
+    /// Heat capacities [J/K].
+    pub heat_capacity: &'a [f64],
+    /// Out, per pair slot: the contact conductance [W/K].
     pub conductance: &'a mut [f64],
+    /// Out: net heat flow [W].
+    pub heat_flow: &'a mut [f64],
+    /// Out: heat flow from walls, gas and surroundings [W].
+    pub boundary_flow: &'a mut [f64],
+    /// Out: total conductance G_i [W/K].
+    pub total_conductance: &'a mut [f64],
 }
 
-/// Per pair slot, for scenes with friction or rolling resistance: the tangential history
-/// (carried over neighbour-list rebuilds by id key) and the torques of this step.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct PairTangential {
-    /// Tangential displacement ξ [m] of the first particle relative to the second, world frame,
-    /// turned into the current tangent plane at each use (M.58).
-    pub history: DVec3,
-    /// Spring energy `½ k_t |ξ|²` at the last evaluation [J] (M.63).
-    pub spring_energy: f64,
-    /// Torque on the first particle [N·m] (M.60, M.61).
-    pub torque_on_first: DVec3,
-    /// Torque on the second particle [N·m].
-    pub torque_on_second: DVec3,
-}
-
-/// What the pair pass needs and fills for scenes with friction or rolling resistance.
+/// What the force pass needs and fills for scenes with friction or rolling resistance.
 #[derive(Debug)]
-pub struct PairFriction<'a> {
-    /// Angular velocities [rad/s] (at the half step, like the velocities).
-    pub angular_velocity: &'a [DVec3],
-    /// Per pair slot: history in, history and torques out.
+pub struct PassRotation<'a> {
+    /// Angular velocities, torques and wall histories.
+    pub rotation: &'a mut Rotation,
+    /// Per pair slot: the tangential history.
     pub slots: &'a mut [PairTangential],
 }
 
@@ -202,277 +210,350 @@ fn tangential_step(
     }
 }
 
-/// Pair pass: fills `results` and updates `states` (both indexed like `list.pairs`); with
-/// `heat`, also each pair's contact conductance, while the pair's data is at hand; with
-/// `friction`, the tangential force (added to the result) and the pair's torques.
-pub fn pair_pass(
+/// The force pass (steps 4-5 of the step order): every particle's force, with rotation its
+/// torque, with `[thermal]` its first-substep heat flows and every slot's conductance; bond states
+/// and tangential histories advance by one step. Returns what the per-step guards need.
+pub fn compute(
+    model: &Model,
+    particles: &mut Particles,
+    list: &NeighborList,
+    states: &mut [BondState],
+    rotation: Option<PassRotation<'_>>,
+    heat: Option<PassHeat<'_>>,
+) -> ForceSummary {
+    let parallel = crate::worth_parallel(particles.len());
+    let mut forces = std::mem::take(&mut particles.force);
+    let mut dissipated = std::mem::take(&mut particles.dissipated);
+    fill(&mut forces, DVec3::ZERO, parallel);
+    let (mut rotation, slots) = match rotation {
+        Some(PassRotation { rotation, slots }) => (Some(rotation), Some(slots)),
+        None => (None, None),
+    };
+    let mut heat = heat;
+    if let Some(r) = &mut rotation {
+        fill(&mut r.torque, DVec3::ZERO, parallel);
+    }
+    if let Some(h) = &mut heat {
+        fill(h.heat_flow, 0.0, parallel);
+        fill(h.total_conductance, 0.0, parallel);
+    }
+    let pairs = {
+        let state = &*particles;
+        let (omega, torque) = match rotation.as_mut() {
+            Some(r) => (
+                Some(r.angular_velocity.as_slice()),
+                Some(Scatter::new(&mut r.torque)),
+            ),
+            None => (None, None),
+        };
+        let targets = PairTargets {
+            force: Scatter::new(&mut forces),
+            lost: Scatter::new(&mut dissipated),
+            states: Scatter::new(states),
+            torque,
+            tangential: slots.map(Scatter::new),
+            heat: heat.as_mut().map(|h| HeatTargets {
+                model: h.model,
+                melted: h.melted,
+                temperature: h.temperature,
+                conductance: Scatter::new(h.conductance),
+                heat_flow: Scatter::new(h.heat_flow),
+                total_conductance: Scatter::new(h.total_conductance),
+            }),
+        };
+        list.for_each_owner(
+            parallel,
+            ForceSummary::default(),
+            |summary, window| owner_pairs(model, state, list, omega, &targets, summary, window),
+            ForceSummary::merge,
+        )
+    };
+    particles.force = forces;
+    particles.dissipated = dissipated;
+    let own = particle_pass(model, particles, rotation, heat, parallel);
+    pairs.merge(own)
+}
+
+/// Sets every element to `value`.
+fn fill<T: Copy + Send + Sync>(values: &mut [T], value: T, parallel: bool) {
+    if parallel {
+        values.par_iter_mut().for_each(|v| *v = value);
+    } else {
+        values.fill(value);
+    }
+}
+
+/// What the pair pass writes, shared by the concurrent slabs of a colour phase.
+struct PairTargets<'a> {
+    force: Scatter<'a, DVec3, PerParticle>,
+    lost: Scatter<'a, f64, PerParticle>,
+    states: Scatter<'a, BondState, PerSlot>,
+    torque: Option<Scatter<'a, DVec3, PerParticle>>,
+    tangential: Option<Scatter<'a, PairTangential, PerSlot>>,
+    heat: Option<HeatTargets<'a>>,
+}
+
+/// The thermal part of [`PairTargets`], with the inputs the conductances need.
+struct HeatTargets<'a> {
+    model: &'a ThermalModel,
+    melted: &'a [bool],
+    temperature: &'a [f64],
+    conductance: Scatter<'a, f64, PerSlot>,
+    heat_flow: Scatter<'a, f64, PerParticle>,
+    total_conductance: Scatter<'a, f64, PerParticle>,
+}
+
+/// The pairs of the window's owner: every contact law, added to both particles.
+#[allow(clippy::too_many_lines)]
+#[inline]
+fn owner_pairs(
     model: &Model,
     particles: &Particles,
     list: &NeighborList,
-    states: &mut [BondState],
-    results: &mut [PairResult],
-    heat: Option<PairHeat<'_>>,
-    friction: Option<PairFriction<'_>>,
+    omega: Option<&[DVec3]>,
+    targets: &PairTargets<'_>,
+    summary: &mut ForceSummary,
+    window: &Window<'_>,
 ) {
-    let melted = heat.as_ref().map(|h| h.melted);
-    let thermal = heat.as_ref().map(|h| h.model);
-    let angular_velocity = friction.as_ref().map(|f| f.angular_velocity);
-    let evaluate = |&[a, b]: &[u32; 2],
-                    state: &mut BondState,
-                    result: &mut PairResult,
-                    conductance: Option<&mut f64>,
-                    slot: Option<&mut PairTangential>| {
-        let (a, b) = (a as usize, b as usize);
-        let separation = pair_separation(model.periodic.as_ref(), particles, a, b);
-        let reach = particles.radius[a] + particles.radius[b];
+    let a = window.owner();
+    let periodic = model.periodic.as_ref();
+    let (x_a, v_a, r_a, m_a) = (
+        particles.position[a],
+        particles.velocity[a],
+        particles.radius[a],
+        particles.mass[a],
+    );
+    let material_a = particles.material[a];
+    let (mut force_a, mut lost_a, mut torque_a) = (DVec3::ZERO, 0.0, DVec3::ZERO);
+    let (mut heat_a, mut conductance_a) = (0.0, 0.0);
+    let partners = list.partners();
+    for p in window.slots() {
+        let b = partners[p] as usize;
+        let mut separation = particles.position[b] - x_a;
+        if let Some(box_) = periodic {
+            separation = box_.minimum_image(separation);
+        }
+        let r_b = particles.radius[b];
+        let reach = r_a + r_b;
         let distance_squared = separation.length_squared();
         if distance_squared >= reach * reach {
-            // Most candidate pairs are apart: no square root, no division for them. The stored
-            // overlap is −(d² − R²)/(2R), negative like the gap R − d and within (R − d)²/(2R)
-            // of it; only its sign is ever read for an apart pair.
-            if let Some(h) = conductance {
-                *h = 0.0;
+            // Most candidate pairs are apart: no square root, no division, and no write unless
+            // the slot still holds something from an earlier contact.
+            {
+                if targets.states.read(window, p) != BondState::Unbonded {
+                    targets
+                        .states
+                        .update(window, p, |s| *s = BondState::Unbonded);
+                }
+                if let Some(slots) = &targets.tangential {
+                    let held = slots.read(window, p);
+                    if held != PairTangential::default() {
+                        // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held
+                        // is lost, half to each particle.
+                        slots.update(window, p, |t| *t = PairTangential::default());
+                        lost_a += 0.5 * held.spring_energy;
+                        targets
+                            .lost
+                            .update(window, b, |l| *l += 0.5 * held.spring_energy);
+                    }
+                }
+                if let Some(h) = &targets.heat {
+                    if h.conductance.read(window, p) != 0.0 {
+                        h.conductance.update(window, p, |c| *c = 0.0);
+                    }
+                }
             }
-            // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is lost, and
-            // the torques go to zero. Written only when not already clear, to spare the memory
-            // traffic of the many pairs that stay apart.
-            let released = slot
-                .filter(|t| **t != PairTangential::default())
-                .map_or(0.0, |t| std::mem::take(t).spring_energy);
-            *state = BondState::Unbonded;
-            *result = PairResult {
-                force_on_first: DVec3::ZERO,
-                overlap: (reach * reach - distance_squared) / (2.0 * reach),
-                lost: released,
-            };
-            return;
+            continue;
         }
         let distance = distance_squared.sqrt();
         let normal = unit_normal(separation, distance);
         let overlap = reach - distance;
+        let m_b = particles.mass[b];
+        let v_b = particles.velocity[b];
         let kinematics = PairKinematics {
             overlap,
-            overlap_rate: (particles.velocity[a] - particles.velocity[b]).dot(normal),
-            effective_radius: hertz::effective_radius(particles.radius[a], particles.radius[b]),
-            effective_mass: hertz::effective_mass(particles.mass[a], particles.mass[b]),
+            overlap_rate: (v_a - v_b).dot(normal),
+            effective_radius: hertz::effective_radius(r_a, r_b),
+            effective_mass: hertz::effective_mass(m_a, m_b),
         };
-        if let (Some(h), Some(t)) = (conductance, thermal) {
-            *h =
-                thermal::pair_conductance(t, particles, a, b, overlap, kinematics.effective_radius);
-        }
-        let params = model.pair_params(particles.material[a], particles.material[b]);
-        let (melted_a, melted_b) = melted.map_or((false, false), |m| (m[a], m[b]));
-        let criterion = model.bond_criterion.holds(melted_a, melted_b);
-        let outcome = contact::normal_force(params, &kinematics, *state, criterion);
+        summary.observe_overlap(overlap / r_a.min(r_b), if r_a <= r_b { a } else { b });
+        let material_b = particles.material[b];
+        let params = model.pair_params(material_a, material_b);
+        let melted = targets
+            .heat
+            .as_ref()
+            .map_or((false, false), |h| (h.melted[a], h.melted[b]));
+        let criterion = model.bond_criterion.holds(melted.0, melted.1);
+        let state = targets.states.read(window, p);
+        let outcome = contact::normal_force(params, &kinematics, state, criterion);
         // (M.35): damper work over the step, at the half-step velocity the force used.
         let mut lost = model.dt * (outcome.force - outcome.elastic) * kinematics.overlap_rate;
-        if outcome.state != *state {
+        if outcome.state != state {
             if let Some(bond) = &params.bond {
                 // The stored energy jumps where eq. 25 switches branch at a given overlap.
-                let hertz_energy = hertz::elastic_energy(
-                    params.effective_modulus,
-                    kinematics.effective_radius,
-                    overlap,
-                );
-                let bond_energy = bond.elastic_energy(
-                    params.effective_modulus,
-                    kinematics.effective_radius,
-                    overlap,
-                );
+                let e_star = params.effective_modulus;
+                let r_star = kinematics.effective_radius;
+                let hertz_energy = hertz::elastic_energy(e_star, r_star, overlap);
+                let bond_energy = bond.elastic_energy(e_star, r_star, overlap);
                 lost += match outcome.state {
                     BondState::Bonded => hertz_energy - bond_energy,
                     BondState::Unbonded => bond_energy - hertz_energy,
                 };
             }
+            targets.states.update(window, p, |s| *s = outcome.state);
         }
-        *state = outcome.state;
-        let mut force_on_first = -outcome.force * normal;
-        if let (Some(slot), Some(omega), Some(tables)) =
-            (slot, angular_velocity, model.friction.as_ref())
+        let mut force_on_a = -outcome.force * normal;
+        if let (Some(slots), Some(omega), Some(tables)) =
+            (&targets.tangential, omega, model.friction.as_ref())
         {
             // Lever arms to the middle of the overlap (M.60).
-            let arm_a = particles.radius[a] - 0.5 * overlap;
-            let arm_b = particles.radius[b] - 0.5 * overlap;
-            let v = particles.velocity[a] - particles.velocity[b];
+            let arm_a = r_a - 0.5 * overlap;
+            let arm_b = r_b - 0.5 * overlap;
             let contact = TangentialContact {
                 normal,
-                contact_velocity: v + (arm_a * omega[a] + arm_b * omega[b]).cross(normal),
+                contact_velocity: v_a - v_b + (arm_a * omega[a] + arm_b * omega[b]).cross(normal),
                 relative_angular_velocity: omega[a] - omega[b],
-                inverse_inertia_sum: 1.0
-                    / rolling::sphere_inertia(particles.mass[a], particles.radius[a])
-                    + 1.0 / rolling::sphere_inertia(particles.mass[b], particles.radius[b]),
+                inverse_inertia_sum: 1.0 / rolling::sphere_inertia(m_a, r_a)
+                    + 1.0 / rolling::sphere_inertia(m_b, r_b),
                 normal_force: outcome.force,
                 elastic_normal_force: outcome.elastic,
                 bonded: outcome.state == BondState::Bonded,
             };
+            let held = slots.read(window, p);
             let step = tangential_step(
-                tables.pair(particles.material[a], particles.material[b]),
+                tables.pair(material_a, material_b),
                 params.damping_ratio,
                 model.dt,
                 &kinematics,
                 &contact,
-                slot.history,
-                slot.spring_energy,
+                held.history,
+                held.spring_energy,
             );
-            force_on_first += step.force;
+            {
+                slots.update(window, p, |t| {
+                    *t = PairTangential {
+                        history: step.history,
+                        spring_energy: step.spring_energy,
+                    };
+                });
+            }
+            force_on_a += step.force;
             lost += step.lost;
             let lever = normal.cross(step.force);
-            *slot = PairTangential {
-                history: step.history,
-                spring_energy: step.spring_energy,
-                torque_on_first: arm_a * lever + step.rolling_torque,
-                torque_on_second: arm_b * lever - step.rolling_torque,
-            };
+            torque_a += arm_a * lever + step.rolling_torque;
+            if let Some(torque) = &targets.torque {
+                torque.update(window, b, |t| *t += arm_b * lever - step.rolling_torque);
+            }
         }
-        *result = PairResult {
-            force_on_first,
-            overlap,
-            lost,
-        };
-    };
-    let parallel = crate::worth_parallel(list.pairs.len());
-    if let Some(friction) = friction {
-        pair_pass_with_friction(
-            list,
-            states,
-            results,
-            heat,
-            friction.slots,
-            parallel,
-            evaluate,
-        );
-        return;
+        force_a += force_on_a;
+        lost_a += 0.5 * lost;
+        {
+            targets.force.update(window, b, |f| *f -= force_on_a);
+            targets.lost.update(window, b, |l| *l += 0.5 * lost);
+        }
+        if let Some(h) = &targets.heat {
+            let conductance = thermal::pair_conductance(
+                h.model,
+                particles,
+                a,
+                b,
+                overlap,
+                kinematics.effective_radius,
+            );
+            let flow = conductance * (h.temperature[b] - h.temperature[a]);
+            heat_a += flow;
+            conductance_a += conductance;
+            {
+                h.conductance.update(window, p, |c| *c = conductance);
+                h.heat_flow.update(window, b, |q| *q -= flow);
+                h.total_conductance.update(window, b, |g| *g += conductance);
+            }
+        }
     }
-    match (heat, parallel) {
-        (Some(heat), true) => {
-            let slots = states
-                .par_iter_mut()
-                .zip(results.par_iter_mut())
-                .zip(heat.conductance.par_iter_mut());
-            list.pairs
-                .par_iter()
-                .zip(slots)
-                .for_each(|(p, ((s, r), h))| evaluate(p, s, r, Some(h), None));
+    {
+        targets.force.update(window, a, |f| *f += force_a);
+        targets.lost.update(window, a, |l| *l += lost_a);
+        if let Some(torque) = &targets.torque {
+            torque.update(window, a, |t| *t += torque_a);
         }
-        (Some(heat), false) => {
-            let slots = states
-                .iter_mut()
-                .zip(results.iter_mut())
-                .zip(heat.conductance.iter_mut());
-            list.pairs
-                .iter()
-                .zip(slots)
-                .for_each(|(p, ((s, r), h))| evaluate(p, s, r, Some(h), None));
-        }
-        (None, true) => {
-            let slots = states.par_iter_mut().zip(results.par_iter_mut());
-            list.pairs
-                .par_iter()
-                .zip(slots)
-                .for_each(|(p, (s, r))| evaluate(p, s, r, None, None));
-        }
-        (None, false) => {
-            let slots = states.iter_mut().zip(results.iter_mut());
-            list.pairs
-                .iter()
-                .zip(slots)
-                .for_each(|(p, (s, r))| evaluate(p, s, r, None, None));
+        if let Some(h) = &targets.heat {
+            h.heat_flow.update(window, a, |q| *q += heat_a);
+            h.total_conductance
+                .update(window, a, |g| *g += conductance_a);
         }
     }
 }
 
-/// The pair pass's loop for scenes with friction: the tangential slots zipped in, and the
-/// conductances when there are any (an `Either` of slots or `None`s keeps it to two arms).
-fn pair_pass_with_friction<F>(
-    list: &NeighborList,
-    states: &mut [BondState],
-    results: &mut [PairResult],
-    heat: Option<PairHeat<'_>>,
-    slots: &mut [PairTangential],
-    parallel: bool,
-    evaluate: F,
-) where
-    F: Fn(
-            &[u32; 2],
-            &mut BondState,
-            &mut PairResult,
-            Option<&mut f64>,
-            Option<&mut PairTangential>,
-        ) + Sync,
-{
-    use rayon::iter::Either;
-    let n = list.pairs.len();
-    if parallel {
-        let conductance = match heat {
-            Some(h) => Either::Left(h.conductance.par_iter_mut().map(Some)),
-            None => Either::Right((0..n).into_par_iter().map(|_| None)),
-        };
-        let outputs = states
-            .par_iter_mut()
-            .zip(results.par_iter_mut())
-            .zip(conductance.zip(slots.par_iter_mut()));
-        list.pairs
-            .par_iter()
-            .zip(outputs)
-            .for_each(|(p, ((s, r), (h, t)))| evaluate(p, s, r, h, Some(t)));
-    } else {
-        let conductance = match heat {
-            Some(h) => Either::Left(h.conductance.iter_mut().map(Some)),
-            None => Either::Right((0..n).map(|_| None)),
-        };
-        let outputs = states
-            .iter_mut()
-            .zip(results.iter_mut())
-            .zip(conductance.zip(slots.iter_mut()));
-        list.pairs
-            .iter()
-            .zip(outputs)
-            .for_each(|(p, ((s, r), (h, t)))| evaluate(p, s, r, h, Some(t)));
-    }
-}
-
-/// Torques and the tangential part of the wall contacts, for scenes with friction or rolling
-/// resistance (parallel over particles, after [`gather`]): each particle sums its incident pair
-/// torques in CSR order, then adds, wall by wall, the wall's tangential force to its force and
-/// the wall's torque, and its wall springs' lost energy to its own accumulator (M.63).
-pub fn torque_gather(
+/// The particle pass: gravity, the wall contacts (normal, and with rotation tangential and
+/// rolling), boundary heat and laser power, and the per-step checks. Each particle writes only
+/// its own entries.
+#[allow(clippy::too_many_lines)]
+fn particle_pass(
     model: &Model,
     particles: &mut Particles,
-    list: &NeighborList,
-    slots: &[PairTangential],
-    rotation: &mut Rotation,
-) {
-    let Some(tables) = model.friction.as_ref() else {
-        return;
-    };
+    rotation: Option<&mut Rotation>,
+    heat: Option<PassHeat<'_>>,
+    parallel: bool,
+) -> ForceSummary {
     let mut forces = std::mem::take(&mut particles.force);
     let mut dissipated = std::mem::take(&mut particles.dissipated);
-    let mut torques = std::mem::take(&mut rotation.torque);
-    let mut wall_contacts = std::mem::take(&mut rotation.wall_contacts);
-    let stride = rotation.wall_stride();
-    let (state, omega) = (&*particles, &rotation.angular_velocity);
-    let sum = |k: usize,
-               ((force, lost), (torque, walls)): (
-        (&mut DVec3, &mut f64),
-        (&mut DVec3, &mut [WallTangential]),
-    )| {
-        let mut total = DVec3::ZERO;
-        for incidence in list.incident(k) {
-            let slot = &slots[incidence.pair as usize];
-            total += if incidence.first {
-                slot.torque_on_first
-            } else {
-                slot.torque_on_second
-            };
+    let state = &*particles;
+    let (omega, torque, walls, stride) = match rotation {
+        Some(r) => {
+            let stride = r.wall_stride();
+            let Rotation {
+                angular_velocity,
+                torque,
+                wall_contacts,
+                ..
+            } = r;
+            (
+                Some(angular_velocity.as_slice()),
+                Some(Scatter::<_, PerParticle>::new(torque)),
+                Some(Scatter::<_, PerSlot>::new(wall_contacts)),
+                stride,
+            )
         }
-        for (w, wall_slot) in walls.iter_mut().enumerate().take(model.walls.len()) {
+        None => (None, None, None, 1),
+    };
+    let force_out: Scatter<'_, DVec3, PerParticle> = Scatter::new(&mut forces);
+    let lost_out: Scatter<'_, f64, PerParticle> = Scatter::new(&mut dissipated);
+    let heat = heat.map(|h| {
+        (
+            h.model,
+            h.temperature,
+            h.laser_power,
+            h.heat_capacity,
+            Scatter::<_, PerParticle>::new(h.heat_flow),
+            Scatter::<_, PerParticle>::new(h.boundary_flow),
+            Scatter::<_, PerParticle>::new(h.total_conductance),
+        )
+    });
+    let visit = |window: &Window<'_>| -> ForceSummary {
+        let k = window.owner();
+        let mut max_overlap: f64 = 0.0;
+        let mut force = state.mass[k] * model.gravity;
+        let mut torque_k = DVec3::ZERO;
+        let mut lost = 0.0;
+        for w in 0..model.walls.len() {
             let overlap = wall_overlap(model, state, k, w);
             if overlap <= 0.0 {
-                *lost += std::mem::take(wall_slot).spring_energy;
+                if let Some(slots) = &walls {
+                    {
+                        let held = slots.read(window, k * stride + w);
+                        if held != WallTangential::default() {
+                            lost += held.spring_energy;
+                            slots
+                                .update(window, k * stride + w, |s| *s = WallTangential::default());
+                        }
+                    }
+                }
                 continue;
             }
+            max_overlap = max_overlap.max(overlap);
             let into_domain = model.walls[w].normal;
             let params = model.wall_params(w, state.material[k]);
+            // A fixed plane is the limit r_j, m_j → ∞: r* = r_k, m* = m_k.
             let kinematics = PairKinematics {
                 overlap,
                 overlap_rate: -state.velocity[k].dot(into_domain),
@@ -481,62 +562,93 @@ pub fn torque_gather(
             };
             let (normal_force, elastic) =
                 contact::hertz_parts(params.effective_modulus, params.damping_ratio, &kinematics);
-            // The particle is the first body, the wall the second: the normal points into the wall.
-            let normal = -into_domain;
-            let arm = state.radius[k] - 0.5 * overlap;
-            let contact = TangentialContact {
-                normal,
-                contact_velocity: state.velocity[k] + (arm * omega[k]).cross(normal),
-                relative_angular_velocity: omega[k],
-                inverse_inertia_sum: 1.0 / rolling::sphere_inertia(state.mass[k], state.radius[k]),
-                normal_force,
-                elastic_normal_force: elastic,
-                bonded: false,
-            };
-            let step = tangential_step(
-                tables.wall(w, state.material[k]),
-                params.damping_ratio,
-                model.dt,
-                &kinematics,
-                &contact,
-                wall_slot.history,
-                wall_slot.spring_energy,
-            );
-            *force += step.force;
-            total += arm * normal.cross(step.force) + step.rolling_torque;
-            *lost += step.lost;
-            *wall_slot = WallTangential {
-                history: step.history,
-                spring_energy: step.spring_energy,
-            };
+            force += normal_force * into_domain;
+            // (M.35): the wall's damper work over the step.
+            lost += model.dt * (normal_force - elastic) * kinematics.overlap_rate;
+            if let (Some(slots), Some(omega), Some(tables)) =
+                (&walls, omega, model.friction.as_ref())
+            {
+                // The particle is the first body, the wall the second: the normal points into
+                // the wall.
+                let normal = -into_domain;
+                let arm = state.radius[k] - 0.5 * overlap;
+                let contact = TangentialContact {
+                    normal,
+                    contact_velocity: state.velocity[k] + (arm * omega[k]).cross(normal),
+                    relative_angular_velocity: omega[k],
+                    inverse_inertia_sum: 1.0
+                        / rolling::sphere_inertia(state.mass[k], state.radius[k]),
+                    normal_force,
+                    elastic_normal_force: elastic,
+                    bonded: false,
+                };
+                let held = slots.read(window, k * stride + w);
+                let step = tangential_step(
+                    tables.wall(w, state.material[k]),
+                    params.damping_ratio,
+                    model.dt,
+                    &kinematics,
+                    &contact,
+                    held.history,
+                    held.spring_energy,
+                );
+                force += step.force;
+                torque_k += arm * normal.cross(step.force) + step.rolling_torque;
+                lost += step.lost;
+                {
+                    slots.update(window, k * stride + w, |s| {
+                        *s = WallTangential {
+                            history: step.history,
+                            spring_energy: step.spring_energy,
+                        };
+                    });
+                }
+            }
         }
-        *torque = total;
+        let mut total = DVec3::ZERO;
+        {
+            force_out.update(window, k, |f| {
+                *f += force;
+                total = *f;
+            });
+            lost_out.update(window, k, |l| *l += lost);
+            if let Some(t) = &torque {
+                t.update(window, k, |t| *t += torque_k);
+            }
+        }
+        let heat_rate = heat.as_ref().map_or(
+            0.0,
+            |(thermal_model, temperature, laser_power, capacity, flow, boundary, conductance)| {
+                let (outside, outside_conductance) =
+                    thermal::boundary_heat(thermal_model, &model.walls, state, k, temperature[k]);
+                {
+                    boundary.update(window, k, |b| *b = outside);
+                    flow.update(window, k, |q| *q += outside + laser_power[k]);
+                    conductance.update(window, k, |g| *g += outside_conductance);
+                    conductance.read(window, k) / capacity[k]
+                }
+            },
+        );
+        let mut summary = ForceSummary {
+            max_heat_rate: heat_rate,
+            non_finite_force: (!total.is_finite()).then_some(k),
+            ..ForceSummary::default()
+        };
+        summary.observe_overlap(max_overlap / state.radius[k], k);
+        summary
     };
-    if crate::worth_parallel(forces.len()) {
-        forces
-            .par_iter_mut()
-            .zip(dissipated.par_iter_mut())
-            .zip(
-                torques
-                    .par_iter_mut()
-                    .zip(wall_contacts.par_chunks_mut(stride)),
-            )
-            .enumerate()
-            .for_each(|(k, slots)| sum(k, slots));
-    } else {
-        forces
-            .iter_mut()
-            .zip(dissipated.iter_mut())
-            .zip(torques.iter_mut().zip(wall_contacts.chunks_mut(stride)))
-            .enumerate()
-            .for_each(|(k, slots)| sum(k, slots));
-    }
+    let summary = scatter::for_each_particle(
+        state.len(),
+        parallel,
+        |k| k * stride..(k + 1) * stride,
+        ForceSummary::default(),
+        visit,
+        ForceSummary::merge,
+    );
     particles.force = forces;
     particles.dissipated = dissipated;
-    rotation.torque = torques;
-    rotation.wall_contacts = wall_contacts;
+    summary
 }
-
 /// Overlap of particle `k` with wall `w` [m] (positive in contact) and the wall's normal.
 #[inline]
 #[must_use]
@@ -545,51 +657,30 @@ pub fn wall_overlap(model: &Model, particles: &Particles, k: usize, w: usize) ->
     particles.radius[k] - (particles.position[k] - wall.point).dot(wall.normal)
 }
 
-/// What the gather pass needs and fills for scenes with `[thermal]`: the first substep's heat
-/// balance (M.47) is summed over the same incidence lists as the forces.
-#[derive(Debug)]
-pub struct GatherHeat<'a> {
-    /// Thermal parameters.
-    pub model: &'a ThermalModel,
-    /// Temperatures at the start of the step [K].
-    pub temperature: &'a [f64],
-    /// Contact conductances of the pair slots [W/K].
-    pub conductance: &'a [f64],
-    /// Absorbed laser power [W].
-    pub laser_power: &'a [f64],
-    /// Heat capacities [J/K].
-    pub heat_capacity: &'a [f64],
-    /// Out: net heat flow [W].
-    pub heat_flow: &'a mut [f64],
-    /// Out: heat flow from walls, gas and surroundings [W].
-    pub boundary_flow: &'a mut [f64],
-    /// Out: total conductance G_i [W/K].
-    pub total_conductance: &'a mut [f64],
-}
-
-/// What the gather pass saw, reduced over particles in a thread-count-independent way (max, and
-/// the lowest index on ties): the inputs of the run's per-step guards (docs/stability.md).
+/// What the force pass saw, reduced in a thread-count-independent way (max, and the lowest
+/// index on ties): the inputs of the run's per-step guards (docs/stability.md).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct GatherSummary {
+pub struct ForceSummary {
     /// `max G_i / C_i` [1/s] with `[thermal]`, 0 otherwise (M.49).
     pub max_heat_rate: f64,
-    /// Largest overlap of any contact (particle or wall) of a particle divided by that particle's
-    /// radius; over all particles this is the largest overlap relative to the smaller radius of
-    /// its pair, since each pair is seen from both ends.
+    /// Largest overlap of any contact relative to the smaller radius of its pair (the
+    /// particle's radius, against a wall).
     pub max_overlap_ratio: f64,
-    /// The particle (index) where `max_overlap_ratio` was seen.
+    /// The particle (index) with that smaller radius.
     pub max_overlap_particle: usize,
-    /// The lowest particle index whose summed force is NaN or infinite.
+    /// The lowest particle index whose total force is NaN or infinite.
     pub non_finite_force: Option<usize>,
 }
 
-impl GatherSummary {
-    fn of(k: usize, heat_rate: f64, overlap_ratio: f64, force: DVec3) -> Self {
-        Self {
-            max_heat_rate: heat_rate,
-            max_overlap_ratio: overlap_ratio,
-            max_overlap_particle: k,
-            non_finite_force: (!force.is_finite()).then_some(k),
+impl ForceSummary {
+    /// Takes in one contact's overlap ratio, seen at particle `k`.
+    #[inline]
+    fn observe_overlap(&mut self, ratio: f64, k: usize) {
+        if ratio > self.max_overlap_ratio
+            || (ratio == self.max_overlap_ratio && k < self.max_overlap_particle)
+        {
+            self.max_overlap_ratio = ratio;
+            self.max_overlap_particle = k;
         }
     }
 
@@ -615,142 +706,4 @@ impl GatherSummary {
             },
         }
     }
-}
-
-/// Gather pass: `particles.force = m g + Σ pair forces (CSR order) + wall forces`; with `heat`,
-/// also each particle's heat flows. Returns what the per-step guards need.
-pub fn gather(
-    model: &Model,
-    particles: &mut Particles,
-    list: &NeighborList,
-    results: &[PairResult],
-    heat: Option<GatherHeat<'_>>,
-) -> GatherSummary {
-    let mut forces = std::mem::take(&mut particles.force);
-    let mut dissipated = std::mem::take(&mut particles.dissipated);
-    let state = &*particles;
-    let dt = model.dt;
-    let inputs = heat.as_ref().map(|h| {
-        (
-            h.model,
-            h.temperature,
-            h.conductance,
-            h.laser_power,
-            h.heat_capacity,
-        )
-    });
-    let sum = |k: usize,
-               force: &mut DVec3,
-               lost: &mut f64,
-               out: Option<(&mut f64, &mut f64, &mut f64)>|
-     -> GatherSummary {
-        let mut total = state.mass[k] * model.gravity;
-        let mut lost_now = 0.0;
-        let mut max_overlap: f64 = 0.0;
-        let (mut exchange, mut conductance_sum) = (0.0, 0.0);
-        let t = inputs.map_or(0.0, |(_, temperature, ..)| temperature[k]);
-        for incidence in list.incident(k) {
-            let result = &results[incidence.pair as usize];
-            total += if incidence.first {
-                result.force_on_first
-            } else {
-                -result.force_on_first
-            };
-            lost_now += 0.5 * result.lost;
-            max_overlap = max_overlap.max(result.overlap);
-            // Only touching pairs conduct: testing the overlap (already loaded with the force)
-            // saves a random read of the conductance array for the other candidates.
-            if let Some((_, temperature, conductance, ..)) = inputs.filter(|_| result.overlap > 0.0)
-            {
-                let h = conductance[incidence.pair as usize];
-                if h > 0.0 {
-                    exchange += h * (temperature[incidence.other as usize] - t);
-                    conductance_sum += h;
-                }
-            }
-        }
-        for w in 0..model.walls.len() {
-            let overlap = wall_overlap(model, state, k, w);
-            if overlap > 0.0 {
-                max_overlap = max_overlap.max(overlap);
-                let normal = model.walls[w].normal;
-                let params = model.wall_params(w, state.material[k]);
-                // A fixed plane is the limit r_j, m_j → ∞: r* = r_k, m* = m_k.
-                let kinematics = PairKinematics {
-                    overlap,
-                    overlap_rate: -state.velocity[k].dot(normal),
-                    effective_radius: state.radius[k],
-                    effective_mass: state.mass[k],
-                };
-                let (wall_force, elastic) = contact::hertz_parts(
-                    params.effective_modulus,
-                    params.damping_ratio,
-                    &kinematics,
-                );
-                total += wall_force * normal;
-                // (M.35): the wall's damper work over the step.
-                lost_now += dt * (wall_force - elastic) * kinematics.overlap_rate;
-            }
-        }
-        *force = total;
-        *lost += lost_now;
-        let heat_rate = match (out, inputs) {
-            (Some((q, boundary, g)), Some((thermal_model, _, _, laser_power, heat_capacity))) => {
-                let (outside, outside_conductance) =
-                    thermal::boundary_heat(thermal_model, &model.walls, state, k, t);
-                *boundary = outside;
-                *q = exchange + outside + laser_power[k];
-                *g = conductance_sum + outside_conductance;
-                *g / heat_capacity[k]
-            }
-            _ => 0.0,
-        };
-        GatherSummary::of(k, heat_rate, max_overlap / state.radius[k], total)
-    };
-    let parallel = crate::worth_parallel(forces.len());
-    let summary = match (heat, parallel) {
-        (Some(h), true) => {
-            let out = h
-                .heat_flow
-                .par_iter_mut()
-                .zip(h.boundary_flow.par_iter_mut())
-                .zip(h.total_conductance.par_iter_mut());
-            forces
-                .par_iter_mut()
-                .zip(dissipated.par_iter_mut())
-                .zip(out)
-                .enumerate()
-                .map(|(k, ((f, d), ((q, b), g)))| sum(k, f, d, Some((q, b, g))))
-                .reduce(GatherSummary::default, GatherSummary::merge)
-        }
-        (Some(h), false) => {
-            let out = h
-                .heat_flow
-                .iter_mut()
-                .zip(h.boundary_flow.iter_mut())
-                .zip(h.total_conductance.iter_mut());
-            forces
-                .iter_mut()
-                .zip(dissipated.iter_mut())
-                .zip(out)
-                .enumerate()
-                .map(|(k, ((f, d), ((q, b), g)))| sum(k, f, d, Some((q, b, g))))
-                .fold(GatherSummary::default(), GatherSummary::merge)
-        }
-        (None, true) => forces
-            .par_iter_mut()
-            .zip(dissipated.par_iter_mut())
-            .enumerate()
-            .map(|(k, (f, d))| sum(k, f, d, None))
-            .reduce(GatherSummary::default, GatherSummary::merge),
-        (None, false) => forces
-            .iter_mut()
-            .zip(dissipated.iter_mut())
-            .enumerate()
-            .map(|(k, (f, d))| sum(k, f, d, None))
-            .fold(GatherSummary::default(), GatherSummary::merge),
-    };
-    particles.force = forces;
-    particles.dissipated = dissipated;
-    summary
 }

@@ -345,6 +345,34 @@ impl Snapshot {
         }
     }
 
+    /// Follows the particles to their new indices (`new[i] = old[order[i]]`); if a lit particle
+    /// was dropped, the snapshot is cleared and the next step casts again.
+    pub fn renumber(&mut self, order: &[u32]) {
+        if self.lit.is_empty() {
+            return;
+        }
+        let mut new_index =
+            vec![usize::MAX; order.iter().map(|&k| k as usize + 1).max().unwrap_or(0)];
+        for (new, &old) in order.iter().enumerate() {
+            new_index[old as usize] = new;
+        }
+        let renumbered: Option<Vec<(usize, DVec3)>> = self
+            .lit
+            .iter()
+            .map(|&(k, x)| {
+                new_index
+                    .get(k)
+                    .copied()
+                    .filter(|n| *n != usize::MAX)
+                    .map(|n| (n, x))
+            })
+            .collect();
+        match renumbered {
+            Some(lit) => self.lit = lit,
+            None => *self = Self::default(),
+        }
+    }
+
     /// Records the state of a new ray cast.
     pub fn record(&mut self, beam: Option<DVec2>, lit: &[usize], particles: &Particles) {
         self.beam = beam;

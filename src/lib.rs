@@ -24,6 +24,7 @@ pub mod neighbor;
 pub mod output;
 pub mod particles;
 pub mod periodic;
+pub mod scatter;
 pub mod scene;
 pub mod simulation;
 pub mod study;

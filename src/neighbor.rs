@@ -1,51 +1,160 @@
-//! Neighbour search: a cell list builds a Verlet half list of candidate pairs (centre distance
-//! below `r_i + r_j + skin`), rebuilt when a particle moved more than half the skin since the last
+//! Neighbour search and the coloured traversal of the pairs.
+//!
+//! A cell list builds a Verlet half list of candidate pairs (centre distance below
+//! `r_i + r_j + skin`), rebuilt when a particle moved more than half the skin since the last
 //! build. Between builds no pair can come into contact unseen, because two particles close a gap
 //! of at most `skin` in total.
 //!
+//! # Owners, slabs and colours
+//! The cells are at least `2 r_max + skin` wide, so a candidate pair lies in the same or adjacent
+//! cells. Across the domain's longest axis the cell layers form *slabs*. Each pair is stored once,
+//! by its *owner*: within a slab the particle of lower index, across two slabs the particle of the
+//! slab whose successor holds the other one. The owner's pairs are a contiguous range of pair
+//! *slots* (CSR), where their history lives.
+//!
+//! A pass ([`NeighborList::for_each_owner`]) visits the slabs in two or three colour phases:
+//! even slabs, odd slabs, and on a periodic axis with an odd slab count the last one alone. A
+//! slab's owners only reach particles of that slab and of its successor, so the slabs of one phase
+//! touch disjoint particles and disjoint slots and run in parallel. A pass therefore evaluates each
+//! pair once and adds its force to both particles directly, without atomics, locks or per-thread
+//! copies, and every particle's sum is formed in an order fixed by the list, whatever the thread
+//! count.
+//!
+//! # Storage order
+//! [`NeighborList::spatial_order`] sorts particles by cell, slab-major; the simulation stores them
+//! in that order from every rebuild on, so that a particle's partners, its slots and its slab lie
+//! close in memory. Pair histories follow their pair across a rebuild by the particles' ids
+//! ([`NeighborList::held_pairs`], [`NeighborList::carry`]).
+//!
 //! # Invariants
-//! * Pairs are sorted by their key `(id_lo, id_hi)` of stable particle ids, so the per-pair history
-//!   (the bond state) is carried over a rebuild by a linear merge-join, whatever the particle order.
-//! * Every touching pair is in the list (its distance is below `r_i + r_j`). A bond breaks at
-//!   `δ_crit ≥ 0`, so a bonded pair always touches and its state is never dropped (except by a
-//!   step so far beyond the stability limit that a bonded pair jumps apart by more than the skin:
-//!   the bond is then dropped, as the next pair pass would break it, and the run's guards stop it).
-//! * The order of pairs, and of each particle's incident pairs (the CSR `incidence`), depends only
-//!   on ids and positions, never on the thread count: the force gather sums in that fixed order.
+//! * Every touching pair is in the list. A bond breaks at `δ_crit ≥ 0`, so a bonded pair always
+//!   touches and its state is never dropped (except by a step so far beyond the stability limit
+//!   that a bonded pair jumps apart by more than the skin: the run's guards report that).
+//! * The list, and so the summation order of every pass, depends only on the positions at the
+//!   build and on the storage order, never on the thread count.
+
+use std::ops::Range;
 
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::contact::BondState;
 use crate::periodic::Periodic;
+use crate::scatter::Window;
 
-/// One entry of a particle's incident pairs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Incidence {
-    /// Index into `NeighborList::pairs`.
-    pub pair: u32,
-    /// The other particle of the pair (saves a lookup in `pairs` in the per-particle passes).
-    pub other: u32,
-    /// True when the particle is the pair's first member (the pair result is the force on it);
-    /// false when it is the second (it receives the opposite force).
-    pub first: bool,
-}
-
-/// Verlet half list with CSR incidence and rebuild bookkeeping.
+/// Verlet half list by owner, with its slabs and colour phases.
 #[derive(Debug, Clone, Default)]
 pub struct NeighborList {
-    /// `[first, second]` particle indices, `id[first] < id[second]`, sorted by `(id, id)`.
-    pub pairs: Vec<[u32; 2]>,
-    keys: Vec<(u64, u64)>,
-    /// CSR offsets: particle k's incident pairs are `incidence[offsets[k]..offsets[k + 1]]`.
-    pub offsets: Vec<u32>,
-    /// Incident pairs of every particle, in increasing pair index.
-    pub incidence: Vec<Incidence>,
+    /// CSR offsets: owner k's pair slots are `offsets[k]..offsets[k + 1]`.
+    offsets: Vec<u32>,
+    /// The partner of every slot, ascending within an owner.
+    partners: Vec<u32>,
+    /// Particles of slab s: `slab_members[slab_offsets[s]..slab_offsets[s + 1]]`, ascending.
+    slab_offsets: Vec<u32>,
+    slab_members: Vec<u32>,
+    /// Each particle's slab.
+    slab_of: Vec<u32>,
+    /// Each slab's successor (itself for the last slab of a non-wrapping axis).
+    successor: Vec<u32>,
+    /// Slabs of each colour phase, in the order they run.
+    phases: Vec<Vec<u32>>,
     reference_positions: Vec<DVec3>,
     skin: f64,
     periodic: Option<Periodic>,
     /// Number of builds so far.
     pub builds: u64,
+}
+
+/// Pairs that carry state, by id key, taken from a list before it is rebuilt (see
+/// [`NeighborList::held_pairs`]).
+#[derive(Debug, Clone, Default)]
+pub struct HeldPairs {
+    /// `((id_lo, id_hi), old slot, whether the old owner had the lower id)`, sorted by key.
+    entries: Vec<((u64, u64), u32, bool)>,
+}
+
+/// The cell grid of one build.
+struct Grid {
+    /// Per axis: where cell 0 starts [m], the cell edge [m], and on a periodic axis the number of
+    /// cells across the period (≥ 3, checked when the model is built), so neighbour cells wrap.
+    axes: [(f64, f64, Option<i64>); 3],
+    /// The axis across which the cell layers form slabs (the longest extent).
+    slab_axis: usize,
+}
+
+impl Grid {
+    fn new(positions: &[DVec3], radii: &[f64], skin: f64, periodic: Option<&Periodic>) -> Self {
+        let r_max = radii.iter().copied().fold(0.0, f64::max);
+        let cell = 2.0 * r_max + skin;
+        let lower = positions
+            .iter()
+            .copied()
+            .fold(DVec3::splat(f64::INFINITY), DVec3::min)
+            .to_array();
+        let upper = positions
+            .iter()
+            .copied()
+            .fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max)
+            .to_array();
+        let mut axes = [(0.0, cell, None::<i64>); 3];
+        let mut extent = [0.0; 3];
+        for (axis, g) in axes.iter_mut().enumerate() {
+            match periodic.and_then(|p| p.length[axis].map(|l| (p.lower.to_array()[axis], l))) {
+                Some((start, length)) => {
+                    #[allow(clippy::cast_possible_truncation)]
+                    let count = ((length / cell).floor() as i64).max(1);
+                    #[allow(clippy::cast_precision_loss)]
+                    let size = length / count as f64;
+                    *g = (start, size, Some(count));
+                    extent[axis] = length;
+                }
+                None => {
+                    *g = (lower[axis], cell, None);
+                    extent[axis] = upper[axis] - lower[axis];
+                }
+            }
+        }
+        let slab_axis = (0..3)
+            .max_by(|&a, &b| extent[a].total_cmp(&extent[b]).then(b.cmp(&a)))
+            .unwrap_or(0);
+        Self { axes, slab_axis }
+    }
+
+    #[inline]
+    fn cell_of(&self, x: DVec3) -> [i64; 3] {
+        let x = x.to_array();
+        let mut c = [0i64; 3];
+        for axis in 0..3 {
+            let (start, size, count) = self.axes[axis];
+            #[allow(clippy::cast_possible_truncation)]
+            let index = ((x[axis] - start) / size).floor() as i64;
+            c[axis] = count.map_or(index, |n| index.rem_euclid(n));
+        }
+        c
+    }
+
+    #[inline]
+    fn neighbour_cell(&self, c: [i64; 3], offset: [i64; 3]) -> [i64; 3] {
+        let mut n = [0i64; 3];
+        for axis in 0..3 {
+            let shifted = c[axis] + offset[axis];
+            n[axis] = self.axes[axis]
+                .2
+                .map_or(shifted, |count| shifted.rem_euclid(count));
+        }
+        n
+    }
+
+    /// The sort key of a cell: slab coordinate first.
+    #[inline]
+    fn key(&self, c: [i64; 3]) -> [i64; 3] {
+        let a = self.slab_axis;
+        [c[a], c[(a + 1) % 3], c[(a + 2) % 3]]
+    }
+
+    /// Slab indices wrap around a periodic slab axis with at least three slabs.
+    fn wraps(&self) -> bool {
+        self.axes[self.slab_axis].2.is_some_and(|n| n >= 3)
+    }
 }
 
 impl NeighborList {
@@ -77,362 +186,500 @@ impl NeighborList {
         }
     }
 
-    /// Rebuilds the list and carries each pair's state over by its id key; pairs that left the
-    /// list drop their state (they are not touching, so it is `Unbonded`).
-    pub fn rebuild(
-        &mut self,
-        positions: &[DVec3],
-        radii: &[f64],
-        ids: &[u64],
-        states: &mut Vec<BondState>,
-    ) {
-        self.rebuild_with_history::<()>(positions, radii, ids, states, None);
+    /// The positions of the last build [m] (a restart saves them, so that a resumed run builds
+    /// the same list and sums in the same order).
+    #[must_use]
+    pub fn reference_positions(&self) -> &[DVec3] {
+        &self.reference_positions
     }
 
-    /// [`NeighborList::rebuild`], also carrying a second per-pair array (the tangential history
-    /// of scenes with friction) by the same merge-join; new pairs get `T::default()`. Pairs that
-    /// left the list were not touching, so their history was already reset.
-    pub fn rebuild_with_history<T: Copy + Default>(
-        &mut self,
-        positions: &[DVec3],
-        radii: &[f64],
-        ids: &[u64],
-        states: &mut Vec<BondState>,
-        history: Option<&mut Vec<T>>,
-    ) {
-        let mut candidates =
-            candidate_pairs(positions, radii, ids, self.skin, self.periodic.as_ref());
-        candidates.par_sort_unstable_by_key(|(key, _)| *key);
-
-        // For each new pair, its index in the old list, if it was there.
-        let mut origins: Vec<Option<usize>> = Vec::with_capacity(candidates.len());
-        let mut old = self.keys.iter().zip(states.iter()).enumerate().peekable();
-        for (key, _) in &candidates {
-            while let Some((_, (old_key, _))) = old.peek() {
-                if *old_key < key {
-                    // A pair that left the list was apart by more than the skin; were it bonded,
-                    // it would break at the next pair pass anyway (δ < 0 ≤ δ_crit). Only a step
-                    // far beyond the stability limit can do that, and the guards report it.
-                    old.next();
-                } else {
-                    break;
-                }
-            }
-            match old.peek() {
-                Some((p, (old_key, _))) if *old_key == key => {
-                    origins.push(Some(*p));
-                    old.next();
-                }
-                _ => origins.push(None),
-            }
-        }
-        *states = origins
+    /// The storage order that sorts the particles with `keep[k]` by cell, slab-major:
+    /// `order[new] = old`. Particles of one cell keep their relative order.
+    #[must_use]
+    pub fn spatial_order(&self, positions: &[DVec3], radii: &[f64], keep: &[bool]) -> Vec<u32> {
+        let grid = Grid::new(positions, radii, self.skin, self.periodic.as_ref());
+        let mut keyed: Vec<([i64; 3], u32)> = positions
             .iter()
-            .map(|o| o.map_or(BondState::Unbonded, |p| states[p]))
+            .enumerate()
+            .filter(|(k, _)| keep[*k])
+            .map(|(k, x)| {
+                (
+                    grid.key(grid.cell_of(*x)),
+                    u32::try_from(k).expect("fewer than 2^32 particles"),
+                )
+            })
             .collect();
-        if let Some(history) = history {
-            *history = origins
-                .iter()
-                .map(|o| o.map_or_else(T::default, |p| history[p]))
-                .collect();
-        }
-
-        self.keys = candidates.iter().map(|(key, _)| *key).collect();
-        self.pairs = candidates.into_iter().map(|(_, pair)| pair).collect();
-        self.build_incidence(positions.len());
-        self.reference_positions.clear();
-        self.reference_positions.extend_from_slice(positions);
-        self.builds += 1;
+        keyed.par_sort_unstable();
+        keyed.into_iter().map(|(_, k)| k).collect()
     }
 
-    fn build_incidence(&mut self, particle_count: usize) {
-        let mut counts = vec![0u32; particle_count + 1];
-        for [a, b] in &self.pairs {
-            counts[*a as usize + 1] += 1;
-            counts[*b as usize + 1] += 1;
-        }
-        for k in 1..counts.len() {
-            counts[k] += counts[k - 1];
-        }
-        self.offsets = counts;
-        let mut fill = self.offsets.clone();
-        self.incidence = vec![
-            Incidence {
-                pair: 0,
-                other: 0,
-                first: true
-            };
-            self.pairs.len() * 2
-        ];
-        for (p, [a, b]) in self.pairs.iter().enumerate() {
-            let pair = u32::try_from(p).expect("fewer than 2^32 pairs");
-            for (particle, other, first) in [(*a, *b, true), (*b, *a, false)] {
-                let slot = &mut fill[particle as usize];
-                self.incidence[*slot as usize] = Incidence { pair, other, first };
-                *slot += 1;
+    /// Builds the list for the particles as stored, with `positions` as the reference of the
+    /// next rebuild test. Pair slots start empty: carry histories over with [`NeighborList::carry`].
+    pub fn build(&mut self, positions: &[DVec3], radii: &[f64]) {
+        let n = positions.len();
+        let grid = Grid::new(positions, radii, self.skin, self.periodic.as_ref());
+        let cells: Vec<[i64; 3]> = positions.par_iter().map(|x| grid.cell_of(*x)).collect();
+        let mut order: Vec<([i64; 3], u32)> = cells
+            .iter()
+            .enumerate()
+            .map(|(k, c)| (*c, u32::try_from(k).expect("fewer than 2^32 particles")))
+            .collect();
+        order.par_sort_unstable();
+        // Distinct cells with the start of their run in `order`.
+        let mut runs: Vec<([i64; 3], usize)> = Vec::new();
+        for (k, (c, _)) in order.iter().enumerate() {
+            if runs.last().is_none_or(|(last, _)| last != c) {
+                runs.push((*c, k));
             }
         }
-    }
-
-    /// Incident pairs of particle `k`.
-    #[must_use]
-    #[inline]
-    pub fn incident(&self, k: usize) -> &[Incidence] {
-        &self.incidence[self.offsets[k] as usize..self.offsets[k + 1] as usize]
-    }
-
-    /// The id key `(id_lo, id_hi)` of pair `p`.
-    #[must_use]
-    pub fn key(&self, p: usize) -> (u64, u64) {
-        self.keys[p]
-    }
-}
-
-type Candidate = ((u64, u64), [u32; 2]);
-
-/// All pairs closer than `r_i + r_j + skin`, found through a uniform cell grid of edge
-/// `2 r_max + skin`: a pair within the cutoff lies in the same or an adjacent cell. Cells are found
-/// by sorting the particles by cell (no dense grid), so stray particles far away cost no memory.
-fn candidate_pairs(
-    positions: &[DVec3],
-    radii: &[f64],
-    ids: &[u64],
-    skin: f64,
-    periodic: Option<&Periodic>,
-) -> Vec<Candidate> {
-    if positions.is_empty() {
-        return Vec::new();
-    }
-    let r_max = radii.iter().copied().fold(0.0, f64::max);
-    let cell = 2.0 * r_max + skin;
-    let origin = positions
-        .iter()
-        .copied()
-        .fold(DVec3::splat(f64::INFINITY), DVec3::min)
-        .to_array();
-    // Per axis: where cell 0 starts, the cell size, and on a periodic axis the number of cells
-    // across the period (≥ 3, checked when the model is built), so neighbour cells wrap around.
-    let mut grid = [(0.0, cell, None::<i64>); 3];
-    for (axis, g) in grid.iter_mut().enumerate() {
-        *g = match periodic.and_then(|p| p.length[axis].map(|l| (p.lower.to_array()[axis], l))) {
-            #[allow(clippy::cast_possible_truncation)]
-            Some((lower, length)) => {
-                let count = ((length / cell).floor() as i64).max(1);
-                #[allow(clippy::cast_precision_loss)]
-                let size = length / count as f64;
-                (lower, size, Some(count))
+        let members = |c: [i64; 3]| -> &[([i64; 3], u32)] {
+            match runs.binary_search_by(|(key, _)| key.cmp(&c)) {
+                Ok(pos) => {
+                    let start = runs[pos].1;
+                    let end = runs.get(pos + 1).map_or(order.len(), |(_, s)| *s);
+                    &order[start..end]
+                }
+                Err(_) => &[],
             }
-            None => (origin[axis], cell, None),
         };
-    }
-    #[allow(clippy::cast_possible_truncation)]
-    let cell_of = |x: DVec3| -> [i64; 3] {
-        let x = x.to_array();
-        let mut c = [0i64; 3];
-        for axis in 0..3 {
-            let (start, size, count) = grid[axis];
-            let index = ((x[axis] - start) / size).floor() as i64;
-            c[axis] = count.map_or(index, |n| index.rem_euclid(n));
-        }
-        c
-    };
-    let neighbour_cell = |c: [i64; 3], offset: [i64; 3]| -> [i64; 3] {
-        let mut n = [0i64; 3];
-        for axis in 0..3 {
-            let shifted = c[axis] + offset[axis];
-            n[axis] = grid[axis]
-                .2
-                .map_or(shifted, |count| shifted.rem_euclid(count));
-        }
-        n
-    };
-    let separation = |i: usize, j: usize| {
-        let d = positions[j] - positions[i];
-        periodic.map_or(d, |p| p.minimum_image(d))
-    };
-    let mut order: Vec<([i64; 3], u32)> = positions
-        .iter()
-        .enumerate()
-        .map(|(k, x)| {
-            (
-                cell_of(*x),
-                u32::try_from(k).expect("fewer than 2^32 particles"),
-            )
-        })
-        .collect();
-    order.par_sort_unstable();
-    // Distinct cells with the start of their run in `order`.
-    let mut cells: Vec<([i64; 3], usize)> = Vec::new();
-    for (k, (c, _)) in order.iter().enumerate() {
-        if cells.last().is_none_or(|(last, _)| last != c) {
-            cells.push((*c, k));
-        }
-    }
-    let members = |c: [i64; 3]| -> &[([i64; 3], u32)] {
-        match cells.binary_search_by(|(key, _)| key.cmp(&c)) {
-            Ok(pos) => {
-                let start = cells[pos].1;
-                let end = cells.get(pos + 1).map_or(order.len(), |(_, s)| *s);
-                &order[start..end]
-            }
-            Err(_) => &[],
-        }
-    };
 
-    (0..positions.len())
-        .into_par_iter()
-        .flat_map_iter(|i| {
-            let c = cell_of(positions[i]);
-            let mut found = Vec::new();
+        let (slab_of, slab_count) = slabs(&grid, &cells);
+        let wrapping = grid.wraps();
+        let owns = |i: usize, j: usize| -> bool {
+            let (si, sj) = (slab_of[i], slab_of[j]);
+            if si == sj {
+                i < j
+            } else if wrapping {
+                (si + 1) % slab_count == sj
+            } else {
+                si < sj
+            }
+        };
+        let periodic = self.periodic;
+        let skin = self.skin;
+        let partners_of = |i: usize, found: &mut Vec<u32>| {
+            let start = found.len();
+            let c = cells[i];
             for dz in -1..=1 {
                 for dy in -1..=1 {
                     for dx in -1..=1 {
-                        for &(_, j) in members(neighbour_cell(c, [dx, dy, dz])) {
+                        for &(_, j) in members(grid.neighbour_cell(c, [dx, dy, dz])) {
                             let j = j as usize;
-                            if j <= i {
+                            if j == i || !owns(i, j) {
                                 continue;
                             }
+                            let d = positions[j] - positions[i];
+                            let d = periodic.as_ref().map_or(d, |p| p.minimum_image(d));
                             let cutoff = radii[i] + radii[j] + skin;
-                            if separation(i, j).length_squared() < cutoff * cutoff {
+                            if d.length_squared() < cutoff * cutoff {
                                 #[allow(clippy::cast_possible_truncation)]
-                                let (a, b) = if ids[i] < ids[j] {
-                                    (i as u32, j as u32)
-                                } else {
-                                    (j as u32, i as u32)
-                                };
-                                found.push(((ids[a as usize], ids[b as usize]), [a, b]));
+                                found.push(j as u32);
                             }
                         }
                     }
                 }
             }
-            found
+            found[start..].sort_unstable();
+        };
+        const CHUNK: usize = 2048;
+        let chunks: Vec<(Vec<u32>, Vec<u32>)> = (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|chunk| {
+                let (mut counts, mut found) = (Vec::new(), Vec::new());
+                for i in chunk * CHUNK..((chunk + 1) * CHUNK).min(n) {
+                    let before = found.len();
+                    partners_of(i, &mut found);
+                    counts.push(u32::try_from(found.len() - before).expect("< 2^32 pairs"));
+                }
+                (counts, found)
+            })
+            .collect();
+        self.offsets.clear();
+        self.offsets.push(0);
+        self.partners.clear();
+        for (counts, found) in chunks {
+            for count in counts {
+                let last = *self.offsets.last().unwrap_or(&0);
+                self.offsets
+                    .push(last.checked_add(count).expect("fewer than 2^32 pairs"));
+            }
+            self.partners.extend_from_slice(&found);
+        }
+
+        // Particles by slab (counting sort, ascending within a slab).
+        let mut slab_offsets = vec![0u32; slab_count as usize + 1];
+        for s in &slab_of {
+            slab_offsets[*s as usize + 1] += 1;
+        }
+        for s in 1..slab_offsets.len() {
+            slab_offsets[s] += slab_offsets[s - 1];
+        }
+        let mut fill = slab_offsets.clone();
+        let mut slab_members = vec![0u32; n];
+        for (k, s) in slab_of.iter().enumerate() {
+            let slot = &mut fill[*s as usize];
+            slab_members[*slot as usize] = u32::try_from(k).expect("fewer than 2^32 particles");
+            *slot += 1;
+        }
+        self.slab_offsets = slab_offsets;
+        self.slab_members = slab_members;
+        self.phases = colour_phases(slab_count, wrapping);
+        self.successor = (0..slab_count)
+            .map(|s| match (wrapping, s + 1 < slab_count) {
+                (true, _) => (s + 1) % slab_count,
+                (false, true) => s + 1,
+                (false, false) => s,
+            })
+            .collect();
+        self.slab_of = slab_of;
+        self.reference_positions.clear();
+        self.reference_positions.extend_from_slice(positions);
+        self.builds += 1;
+    }
+
+    /// Number of pair slots.
+    #[must_use]
+    pub fn pair_count(&self) -> usize {
+        self.partners.len()
+    }
+
+    /// The partner of every slot.
+    #[must_use]
+    pub fn partners(&self) -> &[u32] {
+        &self.partners
+    }
+
+    /// Owner `k`'s slots.
+    #[must_use]
+    #[inline]
+    pub fn slots(&self, k: usize) -> Range<usize> {
+        self.offsets[k] as usize..self.offsets[k + 1] as usize
+    }
+
+    /// Every pair as `(slot, owner, partner)`, in slot order.
+    pub fn pairs(&self) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
+        (0..self.offsets.len().saturating_sub(1)).flat_map(move |k| {
+            self.slots(k)
+                .map(move |p| (p, k, self.partners[p] as usize))
         })
-        .collect()
+    }
+
+    /// Calls `visit(&mut partial, window)` for every particle as owner, slab by slab in the
+    /// colour phases (see the module documentation), the slabs of a phase in parallel when
+    /// `parallel`, and returns the partials reduced by `merge` (associative and commutative, for
+    /// the result not to depend on the thread count). The window allows the owner's slots and the
+    /// particles of its slab and of the successor slab, which hold all its partners.
+    #[allow(unsafe_code)]
+    pub fn for_each_owner<R, V, M>(&self, parallel: bool, identity: R, visit: V, merge: M) -> R
+    where
+        R: Clone + Send + Sync,
+        V: Fn(&mut R, &Window<'_>) + Sync,
+        M: Fn(R, R) -> R + Sync + Send,
+    {
+        let run_slab = |s: &u32| {
+            let slab = *s as usize;
+            let mut partial = identity.clone();
+            let members = &self.slab_members
+                [self.slab_offsets[slab] as usize..self.slab_offsets[slab + 1] as usize];
+            for &k in members {
+                let k = k as usize;
+                // SAFETY: the slabs running concurrently are those of one colour phase, whose
+                // sets {slab, successor} are disjoint (`colour_phases`; tested below), and an
+                // owner's slots belong to it alone.
+                let window = unsafe {
+                    Window::pair(k, self.slots(k), &self.slab_of, *s, self.successor[slab])
+                };
+                visit(&mut partial, &window);
+            }
+            partial
+        };
+        let mut total = identity.clone();
+        for phase in &self.phases {
+            let part = if parallel && phase.len() > 1 {
+                phase
+                    .par_iter()
+                    .map(run_slab)
+                    .reduce(|| identity.clone(), &merge)
+            } else {
+                phase.iter().map(run_slab).fold(identity.clone(), &merge)
+            };
+            total = merge(total, part);
+        }
+        total
+    }
+
+    /// The pairs whose slot satisfies `held` (those with state worth keeping), by id key, before
+    /// the particles are reordered and the list rebuilt.
+    #[must_use]
+    pub fn held_pairs(&self, ids: &[u64], held: impl Fn(usize) -> bool) -> HeldPairs {
+        let mut entries: Vec<((u64, u64), u32, bool)> = self
+            .pairs()
+            .filter(|(p, ..)| held(*p))
+            .map(|(p, owner, partner)| {
+                let (a, b) = (ids[owner], ids[partner]);
+                (
+                    (a.min(b), a.max(b)),
+                    u32::try_from(p).expect("fewer than 2^32 pairs"),
+                    a < b,
+                )
+            })
+            .collect();
+        entries.sort_unstable();
+        HeldPairs { entries }
+    }
+
+    /// Per-slot values of the rebuilt list: each held pair's old value `old[slot]`, turned by
+    /// `turn` when its owner changed ends (a history oriented owner → partner flips sign), and
+    /// `T::default()` for the rest. A held pair that left the list was apart by more than the
+    /// skin; were it bonded, it would break at the next pass anyway (δ < 0 ≤ δ_crit).
+    #[must_use]
+    pub fn carry<T: Copy + Default + Send + Sync>(
+        &self,
+        ids: &[u64],
+        held: &HeldPairs,
+        old: &[T],
+        turn: impl Fn(T) -> T + Sync,
+    ) -> Vec<T> {
+        if held.entries.is_empty() {
+            return vec![T::default(); self.partners.len()];
+        }
+        let value = |owner: usize, partner: usize| -> T {
+            let (a, b) = (ids[owner], ids[partner]);
+            let key = (a.min(b), a.max(b));
+            match held.entries.binary_search_by(|(k, ..)| k.cmp(&key)) {
+                Ok(e) => {
+                    let (_, slot, owner_was_lower) = held.entries[e];
+                    let v = old[slot as usize];
+                    if owner_was_lower == (a < b) {
+                        v
+                    } else {
+                        turn(v)
+                    }
+                }
+                Err(_) => T::default(),
+            }
+        };
+        (0..self.offsets.len().saturating_sub(1))
+            .into_par_iter()
+            .flat_map_iter(|k| {
+                self.slots(k)
+                    .map(move |p| value(k, self.partners[p] as usize))
+            })
+            .collect()
+    }
+}
+
+/// Each particle's slab and the number of slabs. On a periodic slab axis the slab is the cell
+/// layer; otherwise the occupied layers are numbered in order (empty layers dropped, so that a
+/// stray particle far away costs no memory), which keeps "successor" meaning "the next occupied
+/// layer", the only one besides its own that an owner's partners can lie in.
+fn slabs(grid: &Grid, cells: &[[i64; 3]]) -> (Vec<u32>, u32) {
+    let axis = grid.slab_axis;
+    let slab = |s: i64| u32::try_from(s).expect("fewer than 2^32 slabs");
+    if let Some(count) = grid.axes[axis].2 {
+        return (cells.iter().map(|c| slab(c[axis])).collect(), slab(count));
+    }
+    let mut layers: Vec<i64> = cells.iter().map(|c| c[axis]).collect();
+    layers.sort_unstable();
+    layers.dedup();
+    let rank = |layer: i64| -> u32 {
+        u32::try_from(layers.binary_search(&layer).unwrap_or(0)).expect("fewer than 2^32 slabs")
+    };
+    let slab_of = cells.iter().map(|c| rank(c[axis])).collect();
+    (
+        slab_of,
+        u32::try_from(layers.len()).expect("fewer than 2^32 slabs"),
+    )
+}
+
+/// The colour phases: even slabs, then odd slabs; on a wrapping axis with an odd count the last
+/// slab (an even one, whose successor is slab 0) runs alone in a third phase.
+fn colour_phases(slab_count: u32, wrapping: bool) -> Vec<Vec<u32>> {
+    let lonely_last = wrapping && slab_count % 2 == 1;
+    let mut even: Vec<u32> = (0..slab_count).step_by(2).collect();
+    let odd: Vec<u32> = (1..slab_count).step_by(2).collect();
+    let last = lonely_last.then(|| even.pop()).flatten();
+    let mut phases = vec![even, odd];
+    if let Some(last) = last {
+        phases.push(vec![last]);
+    }
+    phases.retain(|p| !p.is_empty());
+    phases
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bed::rng::SplitMix64;
 
-    #[test]
-    fn finds_exactly_the_pairs_within_the_cutoff() {
-        // A 5×5×5 jittered cloud, checked against the O(n²) definition.
-        let mut positions = Vec::new();
-        let mut seed = 1u64;
-        for k in 0..125u32 {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            #[allow(clippy::cast_precision_loss)]
-            let jitter = (seed >> 40) as f64 / (1u64 << 24) as f64 * 0.5;
-            positions.push(
-                DVec3::new(f64::from(k % 5), f64::from((k / 5) % 5), f64::from(k / 25)) * 1.9
-                    + DVec3::splat(jitter),
-            );
-        }
-        let radii = vec![1.0; positions.len()];
-        let ids: Vec<u64> = (0..positions.len() as u64).rev().collect(); // ids opposite to indices
-        let mut list = NeighborList::new(0.3, None);
-        let mut states = Vec::new();
-        list.rebuild(&positions, &radii, &ids, &mut states);
-        let mut expected = 0;
-        for i in 0..positions.len() {
-            for j in i + 1..positions.len() {
-                if positions[i].distance(positions[j]) < 2.3 {
-                    expected += 1;
+    fn random_cloud(count: usize, size: DVec3, seed: u64) -> Vec<DVec3> {
+        let mut rng = SplitMix64(seed);
+        (0..count)
+            .map(|_| DVec3::new(rng.unit(), rng.unit(), rng.unit()) * size)
+            .collect()
+    }
+
+    fn keys(list: &NeighborList, ids: &[u64]) -> Vec<(u64, u64)> {
+        let mut keys: Vec<(u64, u64)> = list
+            .pairs()
+            .map(|(_, a, b)| (ids[a].min(ids[b]), ids[a].max(ids[b])))
+            .collect();
+        keys.sort_unstable();
+        keys
+    }
+
+    /// The soundness of the coloured passes: every partner lies in its owner's window (the
+    /// owner's slab or the successor), the windows of one phase are disjoint, and every particle
+    /// is visited exactly once.
+    fn assert_colouring_is_sound(list: &NeighborList, n: usize) {
+        let mut visited = vec![0u32; n];
+        for phase in &list.phases {
+            let mut writer = vec![u32::MAX; n];
+            for &s in phase {
+                let range = list.slab_offsets[s as usize] as usize
+                    ..list.slab_offsets[s as usize + 1] as usize;
+                for &k in &list.slab_members[range] {
+                    visited[k as usize] += 1;
+                    for p in list.slots(k as usize) {
+                        let slab = list.slab_of[list.partners[p] as usize];
+                        assert!(slab == s || slab == list.successor[s as usize]);
+                    }
+                }
+                // The window of slab s: every particle of s and of its successor.
+                for (k, (slab, w)) in list.slab_of.iter().zip(&mut writer).enumerate() {
+                    if *slab == s || *slab == list.successor[s as usize] {
+                        assert!(
+                            *w == u32::MAX || *w == s,
+                            "slabs {} and {s} of one phase both reach particle {k}",
+                            *w
+                        );
+                        *w = s;
+                    }
                 }
             }
         }
-        assert_eq!(list.pairs.len(), expected);
-        assert!(list.keys.windows(2).all(|w| w[0] < w[1]));
-        for [a, b] in &list.pairs {
-            assert!(ids[*a as usize] < ids[*b as usize]);
+        assert!(visited.iter().all(|v| *v == 1), "every particle once");
+    }
+
+    #[test]
+    fn finds_exactly_the_pairs_within_the_cutoff() {
+        let positions = random_cloud(400, DVec3::new(14.0, 9.0, 6.0), 1);
+        let radii = vec![1.0; positions.len()];
+        let ids: Vec<u64> = (0..positions.len() as u64).rev().collect(); // ids opposite to indices
+        let mut list = NeighborList::new(0.3, None);
+        list.build(&positions, &radii);
+        let mut expected = Vec::new();
+        for i in 0..positions.len() {
+            for j in i + 1..positions.len() {
+                if positions[i].distance(positions[j]) < 2.3 {
+                    expected.push((ids[i].min(ids[j]), ids[i].max(ids[j])));
+                }
+            }
         }
-        assert_eq!(list.incidence.len(), 2 * expected);
+        expected.sort_unstable();
+        assert!(expected.len() > 300, "the cloud must be dense enough");
+        assert_eq!(keys(&list, &ids), expected);
+        assert_colouring_is_sound(&list, positions.len());
+        assert!(list.phases.len() == 2 && list.phases[0].len() > 2);
     }
 
     #[test]
     fn finds_exactly_the_minimum_image_pairs_in_a_periodic_box() {
-        // 300 random spheres of radius 1 in a box periodic in x (period 9.3, four cells) and y
-        // (period 7.0, three cells: the smallest allowed), open in z: the list must equal the O(n²)
-        // definition with minimum-image distances, including pairs across the faces.
-        let periodic = Periodic {
-            lower: DVec3::new(-2.0, 1.0, 0.0),
-            length: [Some(9.3), Some(7.0), None],
-        };
-        let mut seed = 7u64;
-        let mut uniform = || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            #[allow(clippy::cast_precision_loss)]
-            let u = (seed >> 11) as f64 / (1u64 << 53) as f64;
-            u
-        };
-        let positions: Vec<DVec3> = (0..300)
-            .map(|_| {
-                DVec3::new(
-                    -2.0 + 9.3 * uniform(),
-                    1.0 + 7.0 * uniform(),
-                    12.0 * uniform(),
-                )
-            })
-            .collect();
-        let radii = vec![1.0; positions.len()];
-        let ids: Vec<u64> = (0..positions.len() as u64).collect();
-        let mut list = NeighborList::new(0.3, Some(periodic));
-        list.rebuild(&positions, &radii, &ids, &mut Vec::new());
-        let mut expected = Vec::new();
-        let mut across = 0;
-        for i in 0..positions.len() {
-            for j in i + 1..positions.len() {
-                let d = positions[j] - positions[i];
-                if periodic.minimum_image(d).length() < 2.3 {
-                    expected.push((ids[i], ids[j]));
-                    across += usize::from(d.length() >= 2.3);
+        // Random spheres of radius 1 in a box periodic in x and y, open in z, with 3, 4 and 5
+        // cells across x (odd counts need the third colour phase): the list must equal the O(n²)
+        // definition with minimum-image distances, including pairs across the faces, and the
+        // colouring must stay sound across the wrap.
+        for (length_x, cells_x) in [(7.0, 3), (9.3, 4), (11.6, 5)] {
+            let periodic = Periodic {
+                lower: DVec3::new(-2.0, 1.0, 0.0),
+                length: [Some(length_x), Some(7.0), None],
+            };
+            let positions: Vec<DVec3> = random_cloud(300, DVec3::new(length_x, 7.0, 4.0), 7)
+                .into_iter()
+                .map(|x| x + periodic.lower)
+                .collect();
+            let radii = vec![1.0; positions.len()];
+            let ids: Vec<u64> = (0..positions.len() as u64).collect();
+            let mut list = NeighborList::new(0.3, Some(periodic));
+            list.build(&positions, &radii);
+            let grid = Grid::new(&positions, &radii, 0.3, Some(&periodic));
+            assert_eq!(grid.slab_axis, 0);
+            assert_eq!(grid.axes[0].2, Some(cells_x));
+            let mut expected = Vec::new();
+            let mut across = 0;
+            for i in 0..positions.len() {
+                for j in i + 1..positions.len() {
+                    let d = positions[j] - positions[i];
+                    if periodic.minimum_image(d).length() < 2.3 {
+                        expected.push((ids[i], ids[j]));
+                        across += usize::from(d.length() >= 2.3);
+                    }
                 }
             }
+            assert!(across > 10, "pairs across the faces ({across})");
+            assert_eq!(keys(&list, &ids), expected);
+            assert_colouring_is_sound(&list, positions.len());
+            assert_eq!(list.phases.len(), if cells_x % 2 == 1 { 3 } else { 2 });
         }
-        assert!(
-            across > 10,
-            "the case must have pairs across the faces ({across})"
-        );
-        assert_eq!(list.keys, expected);
     }
 
     #[test]
-    fn history_follows_the_pair_across_rebuilds() {
-        let mut positions = vec![DVec3::ZERO, DVec3::X * 1.9, DVec3::X * 10.0];
-        let radii = vec![1.0; 3];
-        let ids = vec![7, 3, 5];
-        let mut list = NeighborList::new(0.5, None);
-        let (mut states, mut history) = (Vec::new(), Vec::new());
-        list.rebuild_with_history(&positions, &radii, &ids, &mut states, Some(&mut history));
-        history[0] = 42u32;
-        positions[2] = DVec3::new(-1.9, 0.0, 0.0);
-        list.rebuild_with_history(&positions, &radii, &ids, &mut states, Some(&mut history));
-        let kept = list.keys.iter().position(|k| *k == (3, 7)).unwrap();
-        assert_eq!(history[kept], 42);
-        assert_eq!(history[1 - kept], 0);
+    fn spatial_order_groups_cells_and_drops_removed_particles() {
+        let positions = random_cloud(500, DVec3::new(20.0, 5.0, 5.0), 3);
+        let radii = vec![1.0; positions.len()];
+        let keep: Vec<bool> = (0..positions.len()).map(|k| k % 7 != 0).collect();
+        let list = NeighborList::new(0.3, None);
+        let order = list.spatial_order(&positions, &radii, &keep);
+        assert_eq!(order.len(), keep.iter().filter(|k| **k).count());
+        assert!(order.iter().all(|&k| keep[k as usize]));
+        // Slab-major (x is the longest axis): the x cell never decreases along the order.
+        let min_x = positions.iter().map(|x| x.x).fold(f64::INFINITY, f64::min);
+        let cell = |k: u32| ((positions[k as usize].x - min_x) / 2.3).floor();
+        assert!(order.windows(2).all(|w| cell(w[0]) <= cell(w[1])));
     }
 
     #[test]
-    fn bond_state_follows_the_pair_across_rebuilds() {
+    fn history_follows_the_pair_and_turns_with_its_owner() {
+        // Ids 7, 3, 5. The pair (3, 7) touches; its history is oriented owner → partner.
         let mut positions = vec![DVec3::ZERO, DVec3::X * 1.9, DVec3::X * 10.0];
         let radii = vec![1.0; 3];
-        let ids = vec![7, 3, 5];
+        let mut ids = vec![7, 3, 5];
         let mut list = NeighborList::new(0.5, None);
-        let mut states = Vec::new();
-        list.rebuild(&positions, &radii, &ids, &mut states);
-        assert_eq!(list.pairs, vec![[1, 0]]);
-        states[0] = BondState::Bonded;
-        // A new pair (ids 5 and 7) appears in front of the old one in key order.
-        positions[2] = DVec3::new(-1.9, 0.0, 0.0);
-        list.rebuild(&positions, &radii, &ids, &mut states);
-        assert_eq!(list.pairs.len(), 2);
-        let bonded = list.keys.iter().position(|k| *k == (3, 7)).unwrap();
-        assert_eq!(states[bonded], BondState::Bonded);
-        assert_eq!(states[1 - bonded], BondState::Unbonded);
+        list.build(&positions, &radii);
+        assert_eq!(list.pair_count(), 1);
+        let (_, owner, _) = list.pairs().next().unwrap();
+        let history = vec![if ids[owner] == 7 { 1.0 } else { -1.0 }];
+        let held = list.held_pairs(&ids, |_| true);
+        // Swap the storage order of the two particles and bring id 5 close: the pair (3, 7) must
+        // keep its history, turned if its owner changed ends; the new pair starts empty.
+        positions.swap(0, 1);
+        ids.swap(0, 1);
+        positions[2] = DVec3::new(3.8, 0.0, 0.0);
+        list.build(&positions, &radii);
+        assert_eq!(list.pair_count(), 2);
+        let carried = list.carry(&ids, &held, &history, |h: f64| -h);
+        let mut seen = 0;
+        for (p, owner, partner) in list.pairs() {
+            let key = (ids[owner].min(ids[partner]), ids[owner].max(ids[partner]));
+            if key == (3, 7) {
+                let expected = if ids[owner] == 7 { 1.0 } else { -1.0 };
+                assert_eq!(carried[p], expected);
+                seen += 1;
+            } else {
+                assert_eq!(carried[p], 0.0);
+            }
+        }
+        assert_eq!(seen, 1);
+    }
+
+    #[test]
+    fn a_stray_particle_costs_no_empty_slabs() {
+        let positions = vec![DVec3::ZERO, DVec3::new(1e6, 0.0, 0.0)];
+        let mut list = NeighborList::new(0.3, None);
+        list.build(&positions, &[1.0, 1.0]);
+        assert_eq!(list.pair_count(), 0);
+        // Two occupied layers, not half a million empty ones between them.
+        assert_eq!(list.slab_offsets.len(), 3);
+        assert_colouring_is_sound(&list, 2);
     }
 }

@@ -172,34 +172,61 @@ impl Rotation {
     }
 }
 
-/// Keeps the entries of `values` whose `keep` flag is set, in order.
-pub(crate) fn retain_flagged<T>(values: &mut Vec<T>, keep: &[bool]) {
-    let mut flags = keep.iter();
-    values.retain(|_| *flags.next().unwrap_or(&true));
+/// Puts the entries of `values` in the order `order` (`new[i] = old[order[i]]`); entries not
+/// named are dropped.
+pub(crate) fn select<T: Copy>(values: &mut Vec<T>, order: &[u32]) {
+    *values = order.iter().map(|&k| values[k as usize]).collect();
+}
+
+/// The indices of the set `keep` flags, in order.
+#[must_use]
+pub fn kept_indices(keep: &[bool]) -> Vec<u32> {
+    (0..keep.len())
+        .filter(|&k| keep[k])
+        .map(|k| u32::try_from(k).expect("fewer than 2^32 particles"))
+        .collect()
 }
 
 impl Particles {
-    /// Keeps the particles whose `keep` flag is set, in order (ids stay with their particles).
+    /// Reorders the particles (`new[i] = old[order[i]]`), dropping those not named; ids stay
+    /// with their particles.
+    pub fn select(&mut self, order: &[u32]) {
+        select(&mut self.id, order);
+        select(&mut self.material, order);
+        select(&mut self.radius, order);
+        select(&mut self.mass, order);
+        select(&mut self.position, order);
+        select(&mut self.velocity, order);
+        select(&mut self.force, order);
+        select(&mut self.dissipated, order);
+    }
+
+    /// The index of the particle with id `id` (a linear search: for tests and tools, not for
+    /// loops). A simulation stores its particles in a spatial order that changes at every
+    /// neighbour-list rebuild, so indices do not identify particles across steps; ids do.
+    #[must_use]
+    pub fn index_of(&self, id: u64) -> Option<usize> {
+        self.id.iter().position(|i| *i == id)
+    }
+
+    /// Keeps the particles whose `keep` flag is set, in order.
     pub fn retain(&mut self, keep: &[bool]) {
-        retain_flagged(&mut self.id, keep);
-        retain_flagged(&mut self.material, keep);
-        retain_flagged(&mut self.radius, keep);
-        retain_flagged(&mut self.mass, keep);
-        retain_flagged(&mut self.position, keep);
-        retain_flagged(&mut self.velocity, keep);
-        retain_flagged(&mut self.force, keep);
-        retain_flagged(&mut self.dissipated, keep);
+        self.select(&kept_indices(keep));
     }
 }
 
 impl Rotation {
-    /// Keeps the rotation state of the particles whose `keep` flag is set (see
-    /// [`Particles::retain`]).
-    pub fn retain(&mut self, keep: &[bool]) {
-        retain_flagged(&mut self.angular_velocity, keep);
-        retain_flagged(&mut self.torque, keep);
+    /// Reorders the rotation state like [`Particles::select`].
+    pub fn select(&mut self, order: &[u32]) {
+        select(&mut self.angular_velocity, order);
+        select(&mut self.torque, order);
         let stride = self.wall_stride();
-        let mut slots = keep.iter().flat_map(|k| std::iter::repeat_n(*k, stride));
-        self.wall_contacts.retain(|_| slots.next().unwrap_or(true));
+        self.wall_contacts = order
+            .iter()
+            .flat_map(|&k| {
+                let start = k as usize * stride;
+                self.wall_contacts[start..start + stride].iter().copied()
+            })
+            .collect();
     }
 }

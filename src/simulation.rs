@@ -14,7 +14,7 @@
 //! 7. Second half kick (M.32).
 
 use crate::contact::{BondState, NormalParams, hertz, rolling, tangential};
-use crate::forces::{self, GatherSummary, PairResult, PairTangential};
+use crate::forces::{self, ForceSummary, PairTangential};
 use crate::integrate;
 use crate::laser;
 use crate::model::Model;
@@ -30,14 +30,14 @@ pub struct Simulation {
     /// Particle state.
     pub particles: Particles,
     neighbors: NeighborList,
+    /// Per pair slot of the neighbour list: the bond state, carried over rebuilds by ids.
     bond_states: Vec<BondState>,
-    pair_results: Vec<PairResult>,
     /// Temperatures and heat bookkeeping, if the scene has `[thermal]` (otherwise nothing is
     /// allocated and no thermal pass runs).
     pub thermal: Option<ThermalState>,
     laser_snapshot: laser::Snapshot,
-    /// What the last gather pass saw (the per-step guards read it).
-    gather_summary: GatherSummary,
+    /// What the last force pass saw (the per-step guards read it).
+    force_summary: ForceSummary,
     /// Largest overlap ratio of any step of this run so far.
     peak_overlap_ratio: f64,
     /// Energies this run started from (the balances are measured against them).
@@ -47,8 +47,8 @@ pub struct Simulation {
     /// Angular velocities, torques and wall contact histories, if the scene has friction or
     /// rolling resistance (otherwise nothing is allocated and no rotation pass runs).
     pub rotation: Option<Rotation>,
-    /// Per pair slot (indexed like the neighbour list's pairs), with rotation only: the tangential
-    /// history, carried over rebuilds like `bond_states`, and the pair's torques.
+    /// Per pair slot, with rotation only: the tangential history, carried over rebuilds like
+    /// `bond_states`.
     tangential: Vec<PairTangential>,
     /// Steps taken.
     pub step: u64,
@@ -115,6 +115,9 @@ pub struct RestartState {
     pub rotation: Option<RotationRestart>,
     /// What has left the domain so far (M.78).
     pub removed: Removed,
+    /// Positions of the neighbour list's last build [m] (empty in files written before they were
+    /// saved): a resumed run builds the same list from them.
+    pub neighbor_reference: Vec<glam::DVec3>,
 }
 
 /// Rotational part of [`RestartState`].
@@ -275,10 +278,9 @@ impl Simulation {
             particles,
             neighbors,
             bond_states: Vec::new(),
-            pair_results: Vec::new(),
             thermal,
             laser_snapshot: laser::Snapshot::default(),
-            gather_summary: GatherSummary::default(),
+            force_summary: ForceSummary::default(),
             peak_overlap_ratio: 0.0,
             start: StartEnergies::default(),
             rotation,
@@ -288,7 +290,7 @@ impl Simulation {
             time: 0.0,
         };
         sim.rebuild_neighbors();
-        sim.gather_summary = sim.compute_forces();
+        sim.force_summary = sim.compute_forces();
         sim.clear_tangential_history();
         // The t = 0 evaluation did no work over time; the energy the run starts with already
         // counts any bond it formed.
@@ -309,15 +311,14 @@ impl Simulation {
     /// Removes the particles whose centre has left `[domain]` (M.78), counting them and the
     /// energies they carry, so the balances still close. Runs at neighbour-list builds, which a
     /// particle moving away triggers once it has moved half the skin.
-    fn remove_escaped(&mut self) {
-        let Some(domain) = self.model.domain else {
-            return;
-        };
+    /// The particles to keep at a rebuild: those inside the domain (M.78). The ones outside are
+    /// counted, with the energies they take away, so that the run's balances still close.
+    fn account_escaped(&mut self) -> Vec<bool> {
         let p = &self.particles;
+        let Some(domain) = self.model.domain else {
+            return vec![true; p.len()];
+        };
         let keep: Vec<bool> = p.position.iter().map(|x| domain.contains(*x)).collect();
-        if keep.iter().all(|k| *k) {
-            return;
-        }
         for k in (0..p.len()).filter(|&k| !keep[k]) {
             let rotational = self.rotation.as_ref().map_or(0.0, |r| {
                 0.5 * rolling::sphere_inertia(p.mass[k], p.radius[k])
@@ -335,15 +336,7 @@ impl Simulation {
                 removed.boundary_energy += t.boundary_energy[k];
             }
         }
-        self.particles.retain(&keep);
-        if let Some(t) = &mut self.thermal {
-            t.retain(&keep);
-        }
-        if let Some(r) = &mut self.rotation {
-            r.retain(&keep);
-        }
-        // The last ray cast named particles by index.
-        self.laser_snapshot = laser::Snapshot::default();
+        keep
     }
 
     /// Takes the current state as the reference of the run's energy balances.
@@ -384,12 +377,20 @@ impl Simulation {
                 .map(|_| self.laser_snapshot.clone()),
             rotation: self.rotation.as_ref().map(|r| self.rotation_restart(r)),
             removed: self.removed,
+            neighbor_reference: self.neighbors.reference_positions().to_vec(),
         }
     }
 
     fn rotation_restart(&self, rotation: &Rotation) -> RotationRestart {
-        let held: Vec<usize> = (0..self.tangential.len())
-            .filter(|&p| self.tangential[p] != PairTangential::default())
+        // Saved by id key, oriented from the lower id to the higher (slots are oriented owner →
+        // partner, and the owner depends on the storage order).
+        let held: Vec<((u64, u64), PairTangential)> = self
+            .pair_keys()
+            .filter(|(p, ..)| self.tangential[*p] != PairTangential::default())
+            .map(|(p, key, owner_is_lower)| {
+                let t = self.tangential[p];
+                (key, if owner_is_lower { t } else { t.turned() })
+            })
             .collect();
         RotationRestart {
             angular_velocity: rotation.angular_velocity.clone(),
@@ -400,12 +401,9 @@ impl Simulation {
                 .iter()
                 .map(|c| c.spring_energy)
                 .collect(),
-            pair_ids: held.iter().map(|&p| self.neighbors.key(p)).collect(),
-            pair_history: held.iter().map(|&p| self.tangential[p].history).collect(),
-            pair_spring_energy: held
-                .iter()
-                .map(|&p| self.tangential[p].spring_energy)
-                .collect(),
+            pair_ids: held.iter().map(|(key, _)| *key).collect(),
+            pair_history: held.iter().map(|(_, t)| t.history).collect(),
+            pair_spring_energy: held.iter().map(|(_, t)| t.spring_energy).collect(),
         }
     }
 
@@ -512,10 +510,9 @@ impl Simulation {
             model,
             particles,
             bond_states: Vec::new(),
-            pair_results: Vec::new(),
             thermal,
             laser_snapshot: state.laser.unwrap_or_default(),
-            gather_summary: GatherSummary::default(),
+            force_summary: ForceSummary::default(),
             peak_overlap_ratio: 0.0,
             start: StartEnergies::default(),
             rotation,
@@ -531,65 +528,87 @@ impl Simulation {
         if state.dissipated.len() == n {
             sim.particles.dissipated = state.dissipated;
         }
-        sim.rebuild_neighbors();
+        // The list of the original run at this step: built from the positions of its last build,
+        // on the particles in the order they were saved, so that the resumed run sums every force
+        // in the same order (and rebuilds at the same step) as the original.
+        let reference = if state.neighbor_reference.len() == n {
+            state.neighbor_reference
+        } else {
+            sim.particles.position.clone()
+        };
+        sim.neighbors.build(&reference, &sim.particles.radius);
+        sim.carry_pairs(&crate::neighbor::HeldPairs::default());
         let bonded: std::collections::HashSet<(u64, u64)> = state.bonded.into_iter().collect();
-        for p in 0..sim.neighbors.pairs.len() {
-            if bonded.contains(&sim.neighbors.key(p)) {
+        let held: std::collections::HashMap<(u64, u64), PairTangential> = state
+            .rotation
+            .as_ref()
+            .map(|saved| {
+                saved
+                    .pair_ids
+                    .iter()
+                    .zip(saved.pair_history.iter().zip(&saved.pair_spring_energy))
+                    .map(|(key, (history, spring_energy))| {
+                        let t = PairTangential {
+                            history: *history,
+                            spring_energy: *spring_energy,
+                        };
+                        (*key, t)
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let keys: Vec<_> = sim.pair_keys().collect();
+        for (p, key, owner_is_lower) in keys {
+            if bonded.contains(&key) {
                 sim.bond_states[p] = BondState::Bonded;
             }
-        }
-        if let Some(saved) = &state.rotation {
-            let held: std::collections::HashMap<(u64, u64), (glam::DVec3, f64)> = saved
-                .pair_ids
-                .iter()
-                .copied()
-                .zip(
-                    saved
-                        .pair_history
-                        .iter()
-                        .copied()
-                        .zip(saved.pair_spring_energy.iter().copied()),
-                )
-                .collect();
-            for p in 0..sim.neighbors.pairs.len() {
-                if let Some(&(history, spring_energy)) = held.get(&sim.neighbors.key(p)) {
-                    sim.tangential[p].history = history;
-                    sim.tangential[p].spring_energy = spring_energy;
-                }
+            if let Some(t) = held.get(&key) {
+                sim.tangential[p] = if owner_is_lower { *t } else { t.turned() };
             }
-        }
-        // Overlaps for the diagnostics of the first row; the next step recomputes everything.
-        for (p, &[a, b]) in sim.neighbors.pairs.iter().enumerate() {
-            let (_, overlap) = forces::pair_geometry(
-                sim.model.periodic.as_ref(),
-                &sim.particles,
-                a as usize,
-                b as usize,
-            );
-            sim.pair_results[p] = PairResult {
-                force_on_first: glam::DVec3::ZERO,
-                overlap,
-                lost: 0.0,
-            };
         }
         sim.update_conductances();
         sim.mark_start();
         Ok(sim)
     }
 
-    /// Bonded pairs as (index a, index b, overlap [m], normal force [N], positive when repulsive).
+    /// Every pair slot as `(slot, (id_lo, id_hi), whether the owner has the lower id)`.
+    fn pair_keys(&self) -> impl Iterator<Item = (usize, (u64, u64), bool)> + '_ {
+        let ids = &self.particles.id;
+        self.neighbors.pairs().map(|(p, a, b)| {
+            let (ia, ib) = (ids[a], ids[b]);
+            (p, (ia.min(ib), ia.max(ib)), ia < ib)
+        })
+    }
+
+    /// Every touching pair as `(slot, owner, partner, unit normal owner → partner, overlap [m])`,
+    /// in slot order.
+    fn touching_pairs(&self) -> impl Iterator<Item = (usize, usize, usize, glam::DVec3, f64)> + '_ {
+        let periodic = self.model.periodic.as_ref();
+        self.neighbors.pairs().filter_map(move |(p, a, b)| {
+            let (normal, overlap) = forces::pair_geometry(periodic, &self.particles, a, b);
+            (overlap > 0.0).then_some((p, a, b, normal, overlap))
+        })
+    }
+
+    /// Bonded pairs as (index a, index b, overlap [m], normal force [N], positive when
+    /// repulsive), the force from the bonded law at the current positions and velocities.
     #[must_use]
     pub fn bonded_pairs(&self) -> Vec<(usize, usize, f64, f64)> {
-        self.neighbors
-            .pairs
-            .iter()
-            .zip(self.pair_results.iter().zip(&self.bond_states))
-            .filter(|(_, (_, state))| **state == BondState::Bonded)
-            .map(|(&[a, b], (result, _))| {
-                let (a, b) = (a as usize, b as usize);
-                let (normal, _) =
-                    forces::pair_geometry(self.model.periodic.as_ref(), &self.particles, a, b);
-                (a, b, result.overlap, -result.force_on_first.dot(normal))
+        let p = &self.particles;
+        self.touching_pairs()
+            .filter(|(slot, ..)| self.bond_states[*slot] == BondState::Bonded)
+            .map(|(_, a, b, normal, overlap)| {
+                let kinematics = crate::contact::PairKinematics {
+                    overlap,
+                    overlap_rate: (p.velocity[a] - p.velocity[b]).dot(normal),
+                    effective_radius: hertz::effective_radius(p.radius[a], p.radius[b]),
+                    effective_mass: hertz::effective_mass(p.mass[a], p.mass[b]),
+                };
+                let params = self.model.pair_params(p.material[a], p.material[b]);
+                let force =
+                    crate::contact::normal_force(params, &kinematics, BondState::Bonded, true)
+                        .force;
+                (a, b, overlap, force)
             })
             .collect()
     }
@@ -598,11 +617,9 @@ impl Simulation {
     #[must_use]
     pub fn contact_counts(&self) -> Vec<u64> {
         let mut counts = vec![0u64; self.particles.len()];
-        for (&[a, b], result) in self.neighbors.pairs.iter().zip(&self.pair_results) {
-            if result.overlap > 0.0 {
-                counts[a as usize] += 1;
-                counts[b as usize] += 1;
-            }
+        for (_, a, b, _, _) in self.touching_pairs() {
+            counts[a] += 1;
+            counts[b] += 1;
         }
         for (k, count) in counts.iter_mut().enumerate() {
             for w in 0..self.model.walls.len() {
@@ -614,8 +631,11 @@ impl Simulation {
         counts
     }
 
+    /// Step 2: removes the particles that left the domain, wraps positions into the periodic
+    /// box, stores the particles in the neighbour list's spatial order, rebuilds the list and
+    /// carries every pair's bond state and tangential history over by the particles' ids.
     fn rebuild_neighbors(&mut self) {
-        self.remove_escaped();
+        let keep = self.account_escaped();
         if let Some(periodic) = &self.model.periodic {
             // (M.77): back into the box; the neighbour search and the output see wrapped
             // positions, and the reference positions of the next rebuild check are these.
@@ -623,53 +643,57 @@ impl Simulation {
                 *x = periodic.wrap(*x);
             }
         }
-        let p = &self.particles;
-        if self.rotation.is_some() {
-            self.neighbors.rebuild_with_history(
-                &p.position,
-                &p.radius,
-                &p.id,
-                &mut self.bond_states,
-                Some(&mut self.tangential),
-            );
-        } else {
+        let (states, tangential) = (&self.bond_states, &self.tangential);
+        let held = self.neighbors.held_pairs(&self.particles.id, |p| {
+            states[p] != BondState::Unbonded
+                || tangential
+                    .get(p)
+                    .is_some_and(|t| *t != PairTangential::default())
+        });
+        let order =
             self.neighbors
-                .rebuild(&p.position, &p.radius, &p.id, &mut self.bond_states);
-        }
-        self.pair_results
-            .resize(self.neighbors.pairs.len(), PairResult::default());
+                .spatial_order(&self.particles.position, &self.particles.radius, &keep);
+        self.reorder(&order);
+        let p = &self.particles;
+        self.neighbors.build(&p.position, &p.radius);
+        self.carry_pairs(&held);
     }
 
-    /// Pair pass and gather (steps 3-4). With `[thermal]` they also compute the contact
-    /// conductances and the first substep's heat flows; returns `max G_i / C_i` then.
-    fn compute_forces(&mut self) -> GatherSummary {
-        let heat = match (&self.model.thermal, &mut self.thermal) {
-            (Some(model), Some(state)) => {
-                state.conductance.resize(self.neighbors.pairs.len(), 0.0);
-                Some(forces::PairHeat {
-                    model,
-                    melted: &state.melted,
-                    conductance: &mut state.conductance,
-                })
-            }
-            _ => None,
-        };
-        forces::pair_pass(
-            &self.model,
-            &self.particles,
-            &self.neighbors,
-            &mut self.bond_states,
-            &mut self.pair_results,
-            heat,
-            self.rotation.as_ref().map(|r| forces::PairFriction {
-                angular_velocity: &r.angular_velocity,
-                slots: &mut self.tangential,
-            }),
-        );
+    /// Stores the particles in `order` (`new[i] = old[order[i]]`), dropping those not named.
+    fn reorder(&mut self, order: &[u32]) {
+        self.particles.select(order);
+        if let Some(t) = &mut self.thermal {
+            t.select(order);
+        }
+        if let Some(r) = &mut self.rotation {
+            r.select(order);
+        }
+        self.laser_snapshot.renumber(order);
+    }
+
+    /// The pair data of the rebuilt list, from the pairs `held` before the rebuild.
+    fn carry_pairs(&mut self, held: &crate::neighbor::HeldPairs) {
+        let ids = &self.particles.id;
+        self.bond_states = self.neighbors.carry(ids, held, &self.bond_states, |s| s);
+        if self.rotation.is_some() {
+            self.tangential =
+                self.neighbors
+                    .carry(ids, held, &self.tangential, PairTangential::turned);
+        }
+        if let Some(t) = &mut self.thermal {
+            t.conductance.clear();
+            t.conductance.resize(self.neighbors.pair_count(), 0.0);
+        }
+    }
+
+    /// The force pass (steps 4-5). With `[thermal]` it also computes the contact conductances
+    /// and the first substep's heat flows.
+    fn compute_forces(&mut self) -> ForceSummary {
         let heat = match (&self.model.thermal, &mut self.thermal) {
             (Some(model), Some(state)) => {
                 let ThermalState {
                     temperature,
+                    melted,
                     conductance,
                     laser_power,
                     heat_capacity,
@@ -678,12 +702,13 @@ impl Simulation {
                     total_conductance,
                     ..
                 } = state;
-                Some(forces::GatherHeat {
+                Some(forces::PassHeat {
                     model,
+                    melted,
                     temperature,
-                    conductance,
                     laser_power,
                     heat_capacity,
+                    conductance,
                     heat_flow,
                     boundary_flow,
                     total_conductance,
@@ -691,23 +716,17 @@ impl Simulation {
             }
             _ => None,
         };
-        let summary = forces::gather(
+        forces::compute(
             &self.model,
             &mut self.particles,
             &self.neighbors,
-            &self.pair_results,
-            heat,
-        );
-        if let Some(rotation) = &mut self.rotation {
-            forces::torque_gather(
-                &self.model,
-                &mut self.particles,
-                &self.neighbors,
-                &self.tangential,
+            &mut self.bond_states,
+            self.rotation.as_mut().map(|rotation| forces::PassRotation {
                 rotation,
-            );
-        }
-        summary
+                slots: &mut self.tangential,
+            }),
+            heat,
+        )
     }
 
     /// The set-up evaluation at t = 0 computed the tangential forces with a history advanced by
@@ -727,12 +746,11 @@ impl Simulation {
 
     fn update_conductances(&mut self) {
         if let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) {
-            let results = &self.pair_results;
             thermal::update_conductances(
                 model,
+                self.model.periodic.as_ref(),
                 &self.particles,
                 &self.neighbors,
-                |p| results[p].overlap,
                 &mut state.conductance,
             );
         }
@@ -795,7 +813,7 @@ impl Simulation {
         self.absorb_laser();
         let summary = self.compute_forces();
         self.peak_overlap_ratio = self.peak_overlap_ratio.max(summary.max_overlap_ratio);
-        self.gather_summary = summary;
+        self.force_summary = summary;
         let first_flows = self.thermal.is_some().then_some(summary.max_heat_rate);
         self.advance_temperatures(first_flows);
         integrate::kick(&mut self.particles, dt);
@@ -813,18 +831,21 @@ impl Simulation {
     #[must_use]
     pub fn bond_state(&self, a: u64, b: u64) -> BondState {
         let key = (a.min(b), a.max(b));
-        (0..self.neighbors.pairs.len())
-            .find(|&p| self.neighbors.key(p) == key)
-            .map_or(BondState::Unbonded, |p| self.bond_states[p])
+        self.pair_keys()
+            .find(|(_, k, _)| *k == key)
+            .map_or(BondState::Unbonded, |(p, ..)| self.bond_states[p])
     }
 
-    /// Bonded pairs as `(id_lo, id_hi)`.
+    /// Bonded pairs as `(id_lo, id_hi)`, sorted.
     #[must_use]
     pub fn bonds(&self) -> Vec<(u64, u64)> {
-        (0..self.neighbors.pairs.len())
-            .filter(|&p| self.bond_states[p] == BondState::Bonded)
-            .map(|p| self.neighbors.key(p))
-            .collect()
+        let mut bonds: Vec<(u64, u64)> = self
+            .pair_keys()
+            .filter(|(p, ..)| self.bond_states[*p] == BondState::Bonded)
+            .map(|(_, key, _)| key)
+            .collect();
+        bonds.sort_unstable();
+        bonds
     }
 
     /// Measures the current state.
@@ -879,7 +900,7 @@ impl Simulation {
                 .fold(f64::NEG_INFINITY, f64::max),
             melted: t.melted.iter().filter(|m| **m).count(),
             substeps: t.substeps,
-            time_step_ratio: self.model.dt * self.gather_summary.max_heat_rate,
+            time_step_ratio: self.model.dt * self.force_summary.max_heat_rate,
             heat_residual: 0.0,
         });
         d.peak_overlap_ratio = self.peak_overlap_ratio.max(d.max_overlap_ratio);
@@ -931,7 +952,7 @@ impl Simulation {
     /// the gather pass reduces both while summing forces.
     #[must_use]
     pub fn guard_trip(&self) -> Option<GuardTrip> {
-        let summary = &self.gather_summary;
+        let summary = &self.force_summary;
         if let Some(k) = summary.non_finite_force {
             return Some(GuardTrip {
                 quantity: "a non-finite (NaN or infinite) force".into(),
@@ -981,10 +1002,9 @@ impl Simulation {
     fn deepest_contact_of(&self, k: usize) -> Vec<u64> {
         let p = &self.particles;
         let mut deepest = (f64::NEG_INFINITY, None);
-        for incidence in self.neighbors.incident(k) {
-            let overlap = self.pair_results[incidence.pair as usize].overlap;
-            if overlap > deepest.0 {
-                deepest = (overlap, Some(p.id[incidence.other as usize]));
+        for (_, a, b, _, overlap) in self.touching_pairs() {
+            if (a == k || b == k) && overlap > deepest.0 {
+                deepest = (overlap, Some(p.id[a + b - k]));
             }
         }
         for w in 0..self.model.walls.len() {
@@ -1061,26 +1081,17 @@ impl Simulation {
     /// all walk the contacts this way, so they sum in the same order.
     fn for_each_contact(&self, mut visit: impl FnMut(Contact<'_>)) {
         let p = &self.particles;
-        for (pair, (result, state)) in self
-            .neighbors
-            .pairs
-            .iter()
-            .zip(self.pair_results.iter().zip(&self.bond_states))
-        {
-            if result.overlap <= 0.0 {
-                continue;
-            }
-            let (a, b) = (pair[0] as usize, pair[1] as usize);
+        for (slot, a, b, _, overlap) in self.touching_pairs() {
             visit(Contact {
                 first: a,
                 second: Some(b),
                 wall: None,
-                overlap: result.overlap,
+                overlap,
                 smaller_radius: p.radius[a].min(p.radius[b]),
                 effective_radius: hertz::effective_radius(p.radius[a], p.radius[b]),
                 effective_mass: hertz::effective_mass(p.mass[a], p.mass[b]),
                 params: self.model.pair_params(p.material[a], p.material[b]),
-                bonded: *state == BondState::Bonded,
+                bonded: self.bond_states[slot] == BondState::Bonded,
             });
         }
         for k in 0..p.len() {

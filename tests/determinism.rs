@@ -1,5 +1,6 @@
 //! The full coupled step (mechanics, conduction, laser, melting, bonding) gives bitwise the same
-//! state with 1 and 2 threads: the pair-slot design, fixed-order gathers and ordered laser rows.
+//! state with 1 and 2 threads: the coloured pair passes sum in an order fixed by the neighbour
+//! list, and the laser adds its rows in order.
 
 mod common;
 
@@ -100,10 +101,11 @@ fn friction_and_rotation_are_bitwise_identical_on_one_and_two_threads() {
 }
 
 #[test]
-fn friction_runs_with_different_skins_are_bitwise_identical() {
-    // The tangential histories are carried by id key across rebuilds, and pairs that do not touch
-    // add exact zeros in the gathers, so the skin (how often the list is rebuilt, how many
-    // candidates it holds) must not change a bit of the trajectory.
+fn friction_runs_with_different_skins_agree_to_round_off() {
+    // The skin changes how often the list is rebuilt and the particles re-sorted, so the forces are
+    // summed in other orders: the runs differ by round-off, which a dense frictional column
+    // amplifies. A tangential history lost or turned the wrong way at a rebuild would instead
+    // change contact forces at once by O(1) of μ F_n; the bounds below sit far under that.
     let run = |skin: &str| {
         let text = common::scene_text("column.toml")
             .replace("duration_s = 0.1", "duration_s = 0.015")
@@ -122,19 +124,25 @@ fn friction_runs_with_different_skins_are_bitwise_identical() {
     let builds = |s: &Simulation| s.diagnostics().neighbor_builds;
     eprintln!("builds: {} vs {}", builds(&small), builds(&large));
     assert!(builds(&small) > 5 * builds(&large));
-    let bits = |s: &Simulation| -> Vec<u64> {
-        let r = s.rotation.as_ref().unwrap();
-        s.particles
-            .position
-            .iter()
-            .chain(&s.particles.velocity)
-            .chain(&r.angular_velocity)
-            .flat_map(|v| v.to_array())
-            .map(f64::to_bits)
-            .collect()
-    };
-    assert!(
-        bits(&small) == bits(&large),
-        "the skin changed the trajectory"
+    let (a, b) = (&small.particles, &large.particles);
+    let (mut dx, mut dv, mut dw): (f64, f64, f64) = (0.0, 0.0, 0.0);
+    let (mut speed, mut spin): (f64, f64) = (0.0, 0.0);
+    for k in 0..a.len() {
+        let j = b.index_of(a.id[k]).expect("same particles");
+        dx = dx.max((a.position[k] - b.position[j]).length() / a.radius[k]);
+        dv = dv.max((a.velocity[k] - b.velocity[j]).length());
+        let (wa, wb) = (
+            small.rotation.as_ref().unwrap().angular_velocity[k],
+            large.rotation.as_ref().unwrap().angular_velocity[j],
+        );
+        dw = dw.max((wa - wb).length());
+        speed = speed.max(a.velocity[k].length());
+        spin = spin.max(wa.length());
+    }
+    eprintln!(
+        "largest differences: position {dx:.2e} radii, velocity {dv:.2e} of {speed:.2e} m/s, spin {dw:.2e} of {spin:.2e} rad/s"
     );
+    assert!(dx < 1e-6, "positions differ by {dx} radii");
+    assert!(dv < 1e-4 * speed, "velocities differ by {dv} m/s");
+    assert!(dw < 1e-4 * spin, "spins differ by {dw} rad/s");
 }

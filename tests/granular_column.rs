@@ -1,6 +1,6 @@
 //! A column of 2000 spheres (`scenes/column.toml`) settles under gravity in a walled box: nothing
 //! passes through a wall, overlaps stay small, the kinetic energy decays, and the positions are
-//! bitwise the same with 1 and 2 threads (the pair-slot + fixed-order gather design).
+//! bitwise the same with 1 and 2 threads (the coloured pair passes sum in the list's fixed order).
 
 mod common;
 

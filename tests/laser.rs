@@ -119,18 +119,18 @@ fn a_particle_under_another_gets_no_direct_laser_heat() {
         1e-5,
     );
     sim.step();
-    let power = sim.thermal.as_ref().unwrap().laser_power.clone();
-    assert!(power[0] > 0.0);
-    assert_eq!(power[1], 0.0, "the lower sphere is fully shadowed");
+    // Particles are stored in spatial order: look them up by id (scene order).
+    let power_of = |sim: &Simulation, id: u64| {
+        sim.thermal.as_ref().unwrap().laser_power[sim.particles.index_of(id).unwrap()]
+    };
+    assert!(power_of(&sim, 0) > 0.0);
+    assert_eq!(power_of(&sim, 1), 0.0, "the lower sphere is fully shadowed");
     // C half under A: it receives something, but less than when alone.
     let mut half = scene(&[[0.0, 0.0, 4.0 * R], [R, 0.0, R]], 4e-5, path, 1e-6, 1e-5);
     let mut alone = scene(&[[R, 0.0, R]], 4e-5, path, 1e-6, 1e-5);
     half.step();
     alone.step();
-    let (shadowed, free) = (
-        half.thermal.as_ref().unwrap().laser_power[1],
-        alone.thermal.as_ref().unwrap().laser_power[0],
-    );
+    let (shadowed, free) = (power_of(&half, 1), power_of(&alone, 0));
     // Independent reference: the beam power on C's disk outside A's disk (fine midpoint grid).
     let (n, w) = (800, 4e-5);
     let mut lune = 0.0;

@@ -25,11 +25,13 @@ fn the_track_melts_and_bonds_into_a_line() {
             p.position[k]
         );
     }
+    // Bonds are named by ids; particles are stored in spatial order.
+    let index = |id: u64| p.index_of(id).unwrap();
     let bonds = sim.bonds();
     assert!(bonds.len() > 50, "bonds {}", bonds.len());
     let xs: Vec<f64> = bonds
         .iter()
-        .flat_map(|&(a, b)| [p.position[a as usize].x, p.position[b as usize].x])
+        .flat_map(|&(a, b)| [p.position[index(a)].x, p.position[index(b)].x])
         .collect();
     let (lo, hi) = xs
         .iter()
@@ -47,7 +49,7 @@ fn the_track_melts_and_bonds_into_a_line() {
     );
     for &(a, b) in &bonds {
         assert!(
-            thermal.melted[a as usize] && thermal.melted[b as usize],
+            thermal.melted[index(a)] && thermal.melted[index(b)],
             "rule \"both\""
         );
     }

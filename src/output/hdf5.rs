@@ -413,6 +413,16 @@ fn write_restart(group: &Group, state: &RestartState) -> hdf5::Result<()> {
         .with_data(ArrayView2::from_shape((force.len(), 3), force.as_flattened()).expect("N×3"))
         .create("force")?;
     plain("dissipated_energy", ArrayView1::from(&state.dissipated))?;
+    if !state.neighbor_reference.is_empty() {
+        let reference = rows(&state.neighbor_reference);
+        group
+            .new_dataset_builder()
+            .with_data(
+                ArrayView2::from_shape((reference.len(), 3), reference.as_flattened())
+                    .expect("N×3"),
+            )
+            .create("neighbor_reference_position")?;
+    }
     if state.removed.particles > 0 {
         let r = &state.removed;
         #[allow(clippy::cast_precision_loss)]
@@ -614,6 +624,11 @@ pub fn read_last_frame(path: &Path) -> Result<SavedRun> {
                     }
                 } else {
                     Removed::default()
+                },
+                neighbor_reference: if restart.link_exists("neighbor_reference_position") {
+                    vec3(restart.dataset("neighbor_reference_position")?)?
+                } else {
+                    Vec::new()
                 },
             },
         })

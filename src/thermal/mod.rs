@@ -138,22 +138,22 @@ pub struct ThermalState {
 }
 
 impl ThermalState {
-    /// Keeps the thermal state of the particles whose `keep` flag is set (see
-    /// `Particles::retain`); the per-pair conductances are rebuilt with the neighbour list.
-    pub fn retain(&mut self, keep: &[bool]) {
-        use crate::particles::retain_flagged;
-        retain_flagged(&mut self.temperature, keep);
-        retain_flagged(&mut self.enthalpy, keep);
-        retain_flagged(&mut self.heat_capacity, keep);
-        retain_flagged(&mut self.latent_heat, keep);
-        retain_flagged(&mut self.melting_point, keep);
-        retain_flagged(&mut self.melted, keep);
-        retain_flagged(&mut self.laser_power, keep);
-        retain_flagged(&mut self.heat_flow, keep);
-        retain_flagged(&mut self.total_conductance, keep);
-        retain_flagged(&mut self.boundary_flow, keep);
-        retain_flagged(&mut self.laser_energy, keep);
-        retain_flagged(&mut self.boundary_energy, keep);
+    /// Reorders the thermal state like `Particles::select`; the per-pair conductances are
+    /// rebuilt with the neighbour list.
+    pub fn select(&mut self, order: &[u32]) {
+        use crate::particles::select;
+        select(&mut self.temperature, order);
+        select(&mut self.enthalpy, order);
+        select(&mut self.heat_capacity, order);
+        select(&mut self.latent_heat, order);
+        select(&mut self.melting_point, order);
+        select(&mut self.melted, order);
+        select(&mut self.laser_power, order);
+        select(&mut self.heat_flow, order);
+        select(&mut self.total_conductance, order);
+        select(&mut self.boundary_flow, order);
+        select(&mut self.laser_energy, order);
+        select(&mut self.boundary_energy, order);
     }
 }
 
@@ -311,36 +311,24 @@ pub fn pair_conductance(
     }
 }
 
-/// Contact conductances of every pair slot from this step's overlaps (parallel over pairs).
-/// `overlap(p)` is the overlap of pair slot p [m]. The step computes conductances inside the
-/// force pair pass (one read of each pair's data); this stand-alone pass serves a resumed run.
+/// Contact conductances of every pair slot from the current positions (a resumed run needs them
+/// before its first step; a step computes them inside the force pass, with the pair's data at hand).
 pub fn update_conductances(
     model: &ThermalModel,
+    periodic: Option<&crate::periodic::Periodic>,
     particles: &Particles,
     list: &NeighborList,
-    overlap: impl Fn(usize) -> f64 + Sync,
     conductance: &mut Vec<f64>,
 ) {
-    conductance.resize(list.pairs.len(), 0.0);
-    let law = |(p, (&[a, b], h)): (usize, (&[u32; 2], &mut f64))| {
-        let (a, b) = (a as usize, b as usize);
-        let effective_radius =
-            particles.radius[a] * particles.radius[b] / (particles.radius[a] + particles.radius[b]);
-        *h = pair_conductance(model, particles, a, b, overlap(p), effective_radius);
-    };
-    if crate::worth_parallel(list.pairs.len()) {
-        list.pairs
-            .par_iter()
-            .zip(conductance.par_iter_mut())
-            .enumerate()
-            .for_each(law);
-    } else {
-        list.pairs
-            .iter()
-            .zip(conductance.iter_mut())
-            .enumerate()
-            .for_each(law);
-    }
+    conductance.clear();
+    conductance.extend(list.pairs().map(|(_, a, b)| {
+        let (_, overlap) = crate::forces::pair_geometry(periodic, particles, a, b);
+        if overlap <= 0.0 {
+            return 0.0;
+        }
+        let (ra, rb) = (particles.radius[a], particles.radius[b]);
+        pair_conductance(model, particles, a, b, overlap, ra * rb / (ra + rb))
+    }));
 }
 
 /// Conductance between particle `k` and wall `w` (M.41, M.43) [W/K]; 0 if apart or adiabatic.
@@ -553,9 +541,9 @@ pub fn boundary_heat(
 }
 
 /// Net heat flow into every particle at the current temperatures [W] and its total conductance
-/// G_i (parallel over particles, each summing its contacts in the fixed CSR order). Returns
-/// `max_i G_i / C_i` [1/s]. The first substep of a step gets these from the force gather instead
-/// (`forces::gather`), which walks the same incidence lists anyway.
+/// G_i: a coloured pass over the pairs (each pair's flow added to both particles, in the list's
+/// fixed order), then the boundary exchange and laser power per particle. Returns
+/// `max_i G_i / C_i` [1/s]. The first substep of a step gets these from the force pass instead.
 fn heat_flows(
     model: &ThermalModel,
     walls: &[Wall],
@@ -563,6 +551,7 @@ fn heat_flows(
     list: &NeighborList,
     state: &mut ThermalState,
 ) -> f64 {
+    use crate::scatter::{PerParticle, Scatter};
     let ThermalState {
         temperature,
         conductance,
@@ -574,34 +563,57 @@ fn heat_flows(
         ..
     } = state;
     let temperature = &*temperature;
-    let flow = |(k, ((q, g), boundary)): (usize, ((&mut f64, &mut f64), &mut f64))| -> f64 {
-        let t = temperature[k];
-        let (mut contacts, mut sum) = (0.0, 0.0);
-        for inc in list.incident(k) {
-            let h = conductance[inc.pair as usize];
-            if h > 0.0 {
-                contacts += h * (temperature[inc.other as usize] - t);
-                sum += h;
-            }
-        }
-        let (outside, outside_conductance) = boundary_heat(model, walls, particles, k, t);
+    let parallel = crate::worth_parallel(temperature.len());
+    heat_flow.fill(0.0);
+    total_conductance.fill(0.0);
+    {
+        let flow: Scatter<'_, f64, PerParticle> = Scatter::new(heat_flow);
+        let sum: Scatter<'_, f64, PerParticle> = Scatter::new(total_conductance);
+        let partners = list.partners();
+        list.for_each_owner(
+            parallel,
+            (),
+            |(), window| {
+                let a = window.owner();
+                let t = temperature[a];
+                let (mut flow_a, mut sum_a) = (0.0, 0.0);
+                for p in window.slots() {
+                    let h = conductance[p];
+                    if h > 0.0 {
+                        let b = partners[p] as usize;
+                        let q = h * (temperature[b] - t);
+                        flow_a += q;
+                        sum_a += h;
+                        flow.update(window, b, |f| *f -= q);
+                        sum.update(window, b, |g| *g += h);
+                    }
+                }
+                flow.update(window, a, |f| *f += flow_a);
+                sum.update(window, a, |g| *g += sum_a);
+            },
+            |(), ()| (),
+        );
+    }
+    let finish = |(k, ((q, g), boundary)): (usize, ((&mut f64, &mut f64), &mut f64))| -> f64 {
+        let (outside, outside_conductance) =
+            boundary_heat(model, walls, particles, k, temperature[k]);
         *boundary = outside;
-        *q = contacts + outside + laser_power[k];
-        *g = sum + outside_conductance;
+        *q += outside + laser_power[k];
+        *g += outside_conductance;
         *g / heat_capacity[k]
     };
-    if crate::worth_parallel(temperature.len()) {
+    if parallel {
         let out = heat_flow
             .par_iter_mut()
             .zip(total_conductance.par_iter_mut())
             .zip(boundary_flow.par_iter_mut());
-        out.enumerate().map(flow).reduce(|| 0.0, f64::max)
+        out.enumerate().map(finish).reduce(|| 0.0, f64::max)
     } else {
         let out = heat_flow
             .iter_mut()
             .zip(total_conductance.iter_mut())
             .zip(boundary_flow.iter_mut());
-        out.enumerate().map(flow).fold(0.0, f64::max)
+        out.enumerate().map(finish).fold(0.0, f64::max)
     }
 }
 
