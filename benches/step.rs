@@ -1,6 +1,8 @@
 //! One time step of a settled-ish column (`scenes/column.toml`, 2000 spheres after 0.05 s of
 //! settling) and of a larger 19k bed built from the same scene, without and with heat conduction
-//! (the cost of the thermal coupling), on the default thread pool.
+//! (the cost of the thermal coupling), and the LIGGGHTS benchmark bed (`scenes/liggghts_bed_20k.toml`,
+//! 19,200 frictional spheres after 500 steps), on the default thread pool (set
+//! `RAYON_NUM_THREADS=1` for one thread).
 //! Run: `cargo bench --bench step`. Reports particle-steps per second as throughput.
 
 use am_sim::model::Model;
@@ -18,6 +20,19 @@ fn column(scale: usize, thermal: bool) -> Simulation {
     let mut sim = Simulation::new(model, particles);
     for _ in 0..10_000 {
         sim.step(); // 0.05 s: the column has collapsed onto the floor, most spheres in contact
+    }
+    sim
+}
+
+/// The LIGGGHTS benchmark bed after its 500 warm-up steps.
+fn liggghts_bed() -> Simulation {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/liggghts_bed_20k.toml");
+    let scene = Scene::load(&path).expect("valid scene");
+    let (model, particles) = Model::try_build(&scene).expect("buildable");
+    let mut sim = Simulation::new(model, particles);
+    for _ in 0..500 {
+        sim.step();
     }
     sim
 }
@@ -42,6 +57,9 @@ fn bench(c: &mut Criterion) {
         group.throughput(Throughput::Elements(sim.particles.len() as u64));
         group.bench_function(name, |b| b.iter(|| sim.step()));
     }
+    let mut bed = liggghts_bed();
+    group.throughput(Throughput::Elements(bed.particles.len() as u64));
+    group.bench_function("liggghts_bed20k", |b| b.iter(|| bed.step()));
     group.finish();
 }
 

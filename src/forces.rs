@@ -60,7 +60,7 @@ pub fn pair_geometry(
 #[inline]
 fn unit_normal(separation: DVec3, distance: f64) -> DVec3 {
     if distance > 0.0 {
-        separation / distance
+        separation * (1.0 / distance)
     } else {
         DVec3::X
     }
@@ -155,6 +155,7 @@ struct TangentialStep {
 
 /// Tangential spring (M.57–M.59) and rolling resistance (M.61) of one contact over one step,
 /// and the energy they took (M.63): `−F_t·v_t dt − ΔU_t + (−M_r·ω_rel) dt`.
+#[inline]
 fn tangential_step(
     params: &FrictionParams,
     damping_ratio: f64,
@@ -409,19 +410,25 @@ fn owner_pairs(
             // Lever arms to the middle of the overlap (M.60).
             let arm_a = r_a - 0.5 * overlap;
             let arm_b = r_b - 0.5 * overlap;
+            let friction = tables.pair(material_a, material_b);
             let contact = TangentialContact {
                 normal,
                 contact_velocity: v_a - v_b + (arm_a * omega[a] + arm_b * omega[b]).cross(normal),
                 relative_angular_velocity: omega[a] - omega[b],
-                inverse_inertia_sum: 1.0 / rolling::sphere_inertia(m_a, r_a)
-                    + 1.0 / rolling::sphere_inertia(m_b, r_b),
+                // Only the rolling law needs it: two divisions spared without μ_r.
+                inverse_inertia_sum: if friction.rolling > 0.0 {
+                    1.0 / rolling::sphere_inertia(m_a, r_a)
+                        + 1.0 / rolling::sphere_inertia(m_b, r_b)
+                } else {
+                    0.0
+                },
                 normal_force: outcome.force,
                 elastic_normal_force: outcome.elastic,
                 bonded: outcome.state == BondState::Bonded,
             };
             let held = slots.read(window, p);
             let step = tangential_step(
-                tables.pair(material_a, material_b),
+                friction,
                 params.damping_ratio,
                 model.dt,
                 &kinematics,

@@ -64,12 +64,21 @@ pub struct NeighborList {
     pub builds: u64,
 }
 
-/// Pairs that carry state, by id key, taken from a list before it is rebuilt (see
-/// [`NeighborList::held_pairs`]).
-#[derive(Debug, Clone, Default)]
-pub struct HeldPairs {
-    /// `((id_lo, id_hi), old slot, whether the old owner had the lower id)`, sorted by key.
-    entries: Vec<((u64, u64), u32, bool)>,
+/// Pairs that carry state, with their values `T`, by id key, taken from a list before it is
+/// rebuilt (see [`NeighborList::held_pairs`]). Holding the values (not slots of the old arrays)
+/// lets the old per-slot arrays be freed before the new ones are allocated.
+#[derive(Debug, Clone)]
+pub struct HeldPairs<T> {
+    /// `((id_lo, id_hi), whether the old owner had the lower id, value)`, sorted by key.
+    entries: Vec<((u64, u64), bool, T)>,
+}
+
+impl<T> Default for HeldPairs<T> {
+    fn default() -> Self {
+        Self {
+            entries: Vec::new(),
+        }
+    }
 }
 
 /// The cell grid of one build.
@@ -216,6 +225,16 @@ impl NeighborList {
     /// Builds the list for the particles as stored, with `positions` as the reference of the
     /// next rebuild test. Pair slots start empty: carry histories over with [`NeighborList::carry`].
     pub fn build(&mut self, positions: &[DVec3], radii: &[f64]) {
+        // The old list goes first, so that the old and new never coexist (peak memory).
+        for v in [
+            &mut self.offsets,
+            &mut self.partners,
+            &mut self.slab_offsets,
+        ] {
+            *v = Vec::new();
+        }
+        self.slab_members = Vec::new();
+        self.slab_of = Vec::new();
         let n = positions.len();
         let grid = Grid::new(positions, radii, self.skin, self.periodic.as_ref());
         let cells: Vec<[i64; 3]> = positions.par_iter().map(|x| grid.cell_of(*x)).collect();
@@ -408,64 +427,69 @@ impl NeighborList {
         total
     }
 
-    /// The pairs whose slot satisfies `held` (those with state worth keeping), by id key, before
-    /// the particles are reordered and the list rebuilt.
+    /// The pairs for which `held(slot)` gives a value (those with state worth keeping), by id
+    /// key, before the particles are reordered and the list rebuilt.
     #[must_use]
-    pub fn held_pairs(&self, ids: &[u64], held: impl Fn(usize) -> bool) -> HeldPairs {
-        let mut entries: Vec<((u64, u64), u32, bool)> = self
+    pub fn held_pairs<T>(&self, ids: &[u64], held: impl Fn(usize) -> Option<T>) -> HeldPairs<T> {
+        let mut entries: Vec<((u64, u64), bool, T)> = self
             .pairs()
-            .filter(|(p, ..)| held(*p))
-            .map(|(p, owner, partner)| {
+            .filter_map(|(p, owner, partner)| {
                 let (a, b) = (ids[owner], ids[partner]);
-                (
-                    (a.min(b), a.max(b)),
-                    u32::try_from(p).expect("fewer than 2^32 pairs"),
-                    a < b,
-                )
+                held(p).map(|value| ((a.min(b), a.max(b)), a < b, value))
             })
             .collect();
-        entries.sort_unstable();
+        entries.sort_unstable_by_key(|(key, ..)| *key);
         HeldPairs { entries }
     }
 
-    /// Per-slot values of the rebuilt list: each held pair's old value `old[slot]`, turned by
-    /// `turn` when its owner changed ends (a history oriented owner → partner flips sign), and
-    /// `T::default()` for the rest. A held pair that left the list was apart by more than the
+    /// Per-slot values of the rebuilt list: `value(held, turned)` for each held pair, `turned`
+    /// when its owner changed ends (a history oriented owner → partner flips sign), and
+    /// `U::default()` for the rest. A held pair that left the list was apart by more than the
     /// skin; were it bonded, it would break at the next pass anyway (δ < 0 ≤ δ_crit).
     #[must_use]
-    pub fn carry<T: Copy + Default + Send + Sync>(
+    pub fn carry<T: Sync, U: Copy + Default + Send>(
         &self,
         ids: &[u64],
-        held: &HeldPairs,
-        old: &[T],
-        turn: impl Fn(T) -> T + Sync,
-    ) -> Vec<T> {
+        held: &HeldPairs<T>,
+        value: impl Fn(&T, bool) -> U + Sync,
+    ) -> Vec<U> {
         if held.entries.is_empty() {
-            return vec![T::default(); self.partners.len()];
+            return vec![U::default(); self.partners.len()];
         }
-        let value = |owner: usize, partner: usize| -> T {
+        let lookup = |owner: usize, partner: usize| -> U {
             let (a, b) = (ids[owner], ids[partner]);
             let key = (a.min(b), a.max(b));
             match held.entries.binary_search_by(|(k, ..)| k.cmp(&key)) {
                 Ok(e) => {
-                    let (_, slot, owner_was_lower) = held.entries[e];
-                    let v = old[slot as usize];
-                    if owner_was_lower == (a < b) {
-                        v
-                    } else {
-                        turn(v)
-                    }
+                    let (_, owner_was_lower, v) = &held.entries[e];
+                    value(v, *owner_was_lower != (a < b))
                 }
-                Err(_) => T::default(),
+                Err(_) => U::default(),
             }
         };
-        (0..self.offsets.len().saturating_sub(1))
-            .into_par_iter()
-            .flat_map_iter(|k| {
-                self.slots(k)
-                    .map(move |p| value(k, self.partners[p] as usize))
-            })
-            .collect()
+        // Filled in place, by chunks of owners (a parallel `collect` would hold its pieces and
+        // the result at once).
+        let mut values = vec![U::default(); self.partners.len()];
+        let owners = self.offsets.len().saturating_sub(1);
+        const CHUNK: usize = 4096;
+        let mut chunks = Vec::with_capacity(owners.div_ceil(CHUNK));
+        let mut rest = values.as_mut_slice();
+        for first in (0..owners).step_by(CHUNK) {
+            let last = (first + CHUNK).min(owners);
+            let len = (self.offsets[last] - self.offsets[first]) as usize;
+            let (chunk, tail) = rest.split_at_mut(len);
+            chunks.push((first..last, chunk));
+            rest = tail;
+        }
+        chunks.into_par_iter().for_each(|(owners, chunk)| {
+            let start = self.offsets[owners.start] as usize;
+            for k in owners {
+                for p in self.slots(k) {
+                    chunk[p - start] = lookup(k, self.partners[p] as usize);
+                }
+            }
+        });
+        values
     }
 }
 
@@ -648,8 +672,8 @@ mod tests {
         list.build(&positions, &radii);
         assert_eq!(list.pair_count(), 1);
         let (_, owner, _) = list.pairs().next().unwrap();
-        let history = vec![if ids[owner] == 7 { 1.0 } else { -1.0 }];
-        let held = list.held_pairs(&ids, |_| true);
+        let history = if ids[owner] == 7 { 1.0 } else { -1.0 };
+        let held = list.held_pairs(&ids, |_| Some(history));
         // Swap the storage order of the two particles and bring id 5 close: the pair (3, 7) must
         // keep its history, turned if its owner changed ends; the new pair starts empty.
         positions.swap(0, 1);
@@ -657,7 +681,7 @@ mod tests {
         positions[2] = DVec3::new(3.8, 0.0, 0.0);
         list.build(&positions, &radii);
         assert_eq!(list.pair_count(), 2);
-        let carried = list.carry(&ids, &held, &history, |h: f64| -h);
+        let carried = list.carry(&ids, &held, |h: &f64, turned| if turned { -h } else { *h });
         let mut seen = 0;
         for (p, owner, partner) in list.pairs() {
             let key = (ids[owner].min(ids[partner]), ids[owner].max(ids[partner]));

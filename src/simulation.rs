@@ -18,7 +18,7 @@ use crate::forces::{self, ForceSummary, PairTangential};
 use crate::integrate;
 use crate::laser;
 use crate::model::Model;
-use crate::neighbor::NeighborList;
+use crate::neighbor::{HeldPairs, NeighborList};
 use crate::particles::{Particles, Rotation};
 use crate::thermal::{self, ThermalState};
 
@@ -537,7 +537,7 @@ impl Simulation {
             sim.particles.position.clone()
         };
         sim.neighbors.build(&reference, &sim.particles.radius);
-        sim.carry_pairs(&crate::neighbor::HeldPairs::default());
+        sim.carry_pairs(&HeldPairs::default());
         let bonded: std::collections::HashSet<(u64, u64)> = state.bonded.into_iter().collect();
         let held: std::collections::HashMap<(u64, u64), PairTangential> = state
             .rotation
@@ -645,11 +645,15 @@ impl Simulation {
         }
         let (states, tangential) = (&self.bond_states, &self.tangential);
         let held = self.neighbors.held_pairs(&self.particles.id, |p| {
-            states[p] != BondState::Unbonded
-                || tangential
-                    .get(p)
-                    .is_some_and(|t| *t != PairTangential::default())
+            let held = (states[p], tangential.get(p).copied().unwrap_or_default());
+            (held != (BondState::Unbonded, PairTangential::default())).then_some(held)
         });
+        // The old per-slot arrays go before the new ones are built (peak memory).
+        self.bond_states = Vec::new();
+        self.tangential = Vec::new();
+        if let Some(t) = &mut self.thermal {
+            t.conductance = Vec::new();
+        }
         let order =
             self.neighbors
                 .spatial_order(&self.particles.position, &self.particles.radius, &keep);
@@ -672,17 +676,20 @@ impl Simulation {
     }
 
     /// The pair data of the rebuilt list, from the pairs `held` before the rebuild.
-    fn carry_pairs(&mut self, held: &crate::neighbor::HeldPairs) {
+    fn carry_pairs(&mut self, held: &HeldPairs<(BondState, PairTangential)>) {
         let ids = &self.particles.id;
-        self.bond_states = self.neighbors.carry(ids, held, &self.bond_states, |s| s);
+        self.bond_states = self.neighbors.carry(ids, held, |(state, _), _| *state);
         if self.rotation.is_some() {
-            self.tangential =
-                self.neighbors
-                    .carry(ids, held, &self.tangential, PairTangential::turned);
+            self.tangential = self.neighbors.carry(
+                ids,
+                held,
+                |(_, t), turned| {
+                    if turned { t.turned() } else { *t }
+                },
+            );
         }
         if let Some(t) = &mut self.thermal {
-            t.conductance.clear();
-            t.conductance.resize(self.neighbors.pair_count(), 0.0);
+            t.conductance = vec![0.0; self.neighbors.pair_count()];
         }
     }
 

@@ -32,8 +32,11 @@ pub fn rolling_torque(
     inverse_inertia_sum: f64,
     dt: f64,
 ) -> DVec3 {
+    if coefficient == 0.0 {
+        return DVec3::ZERO;
+    }
     let speed = relative_angular_velocity.length();
-    if speed == 0.0 || coefficient == 0.0 {
+    if speed == 0.0 {
         return DVec3::ZERO;
     }
     let full = coefficient * effective_radius * elastic_normal_force.abs();

@@ -123,18 +123,15 @@ pub fn tangential_force(
     let history = history + tangential_velocity * dt;
     let spring = -stiffness * history;
     if let Some(limit) = limit {
-        let spring_magnitude = spring.length();
-        if spring_magnitude > limit {
-            // A spring of zero length cannot exceed a limit ≥ 0, so the division is safe.
-            let force = spring * (limit / spring_magnitude);
-            let history = if stiffness > 0.0 {
-                -force / stiffness
-            } else {
-                DVec3::ZERO
-            };
+        // Compared squared: no square root for a sticking contact.
+        let spring_squared = spring.length_squared();
+        if spring_squared > limit * limit {
+            // A spring of zero length cannot exceed a limit ≥ 0, so the division is safe, and
+            // k_t > 0: ξ = −F_t/k_t is ξ scaled like the force.
+            let scale = limit / spring_squared.sqrt();
             return TangentialForce {
-                force,
-                history,
+                force: spring * scale,
+                history: history * scale,
                 sliding: true,
             };
         }
