@@ -12,8 +12,9 @@
 //! slab whose successor holds the other one. The owner's pairs are a contiguous range of pair
 //! *slots* (CSR), where their history lives.
 //!
-//! A pass ([`NeighborList::for_each_owner`]) visits the slabs in two or three colour phases:
-//! even slabs, odd slabs, and on a periodic axis with an odd slab count the last one alone. A
+//! A pass ([`NeighborList::for_each_owner`]) visits the slabs in two colour phases, even slabs
+//! then odd slabs (a periodic axis with an odd number of layers merges its last two into one slab;
+//! with only three layers the last slab runs alone in a third phase). A
 //! slab's owners only reach particles of that slab and of its successor, so the slabs of one phase
 //! touch disjoint particles and disjoint slots and run in parallel. A pass therefore evaluates each
 //! pair once and adds its force to both particles directly, without atomics, locks or per-thread
@@ -494,14 +495,24 @@ impl NeighborList {
 }
 
 /// Each particle's slab and the number of slabs. On a periodic slab axis the slab is the cell
-/// layer; otherwise the occupied layers are numbered in order (empty layers dropped, so that a
+/// layer (with an odd count of five or more, the last slab two layers); otherwise the occupied layers are numbered in order (empty layers dropped, so that a
 /// stray particle far away costs no memory), which keeps "successor" meaning "the next occupied
 /// layer", the only one besides its own that an owner's partners can lie in.
 fn slabs(grid: &Grid, cells: &[[i64; 3]]) -> (Vec<u32>, u32) {
     let axis = grid.slab_axis;
     let slab = |s: i64| u32::try_from(s).expect("fewer than 2^32 slabs");
     if let Some(count) = grid.axes[axis].2 {
-        return (cells.iter().map(|c| slab(c[axis])).collect(), slab(count));
+        // An odd count of five or more: the last two layers form one slab, so that the slabs
+        // pair up into two colour phases (a lone last slab would run by itself, one core idle).
+        let last = if count >= 5 && count % 2 == 1 {
+            count - 2
+        } else {
+            count - 1
+        };
+        return (
+            cells.iter().map(|c| slab(c[axis].min(last))).collect(),
+            slab(last + 1),
+        );
     }
     let mut layers: Vec<i64> = cells.iter().map(|c| c[axis]).collect();
     layers.sort_unstable();
@@ -516,8 +527,9 @@ fn slabs(grid: &Grid, cells: &[[i64; 3]]) -> (Vec<u32>, u32) {
     )
 }
 
-/// The colour phases: even slabs, then odd slabs; on a wrapping axis with an odd count the last
-/// slab (an even one, whose successor is slab 0) runs alone in a third phase.
+/// The colour phases: even slabs, then odd slabs; on a wrapping axis with an odd count (three
+/// slabs: see [`slabs`]) the last slab (an even one, whose successor is slab 0) runs alone in a
+/// third phase.
 fn colour_phases(slab_count: u32, wrapping: bool) -> Vec<Vec<u32>> {
     let lonely_last = wrapping && slab_count % 2 == 1;
     let mut even: Vec<u32> = (0..slab_count).step_by(2).collect();
@@ -609,11 +621,11 @@ mod tests {
 
     #[test]
     fn finds_exactly_the_minimum_image_pairs_in_a_periodic_box() {
-        // Random spheres of radius 1 in a box periodic in x and y, open in z, with 3, 4 and 5
-        // cells across x (odd counts need the third colour phase): the list must equal the O(n²)
-        // definition with minimum-image distances, including pairs across the faces, and the
-        // colouring must stay sound across the wrap.
-        for (length_x, cells_x) in [(7.0, 3), (9.3, 4), (11.6, 5)] {
+        // Random spheres of radius 1 in a box periodic in x and y, open in z, with 3, 4, 5 and 7
+        // cells across x (3 cells need a third colour phase; 5 and 7 merge their last two layers
+        // into one slab): the list must equal the O(n²) definition with minimum-image distances,
+        // including pairs across the faces, and the colouring must stay sound across the wrap.
+        for (length_x, cells_x) in [(7.0, 3), (9.3, 4), (11.6, 5), (16.2, 7)] {
             let periodic = Periodic {
                 lower: DVec3::new(-2.0, 1.0, 0.0),
                 length: [Some(length_x), Some(7.0), None],
@@ -643,7 +655,16 @@ mod tests {
             assert!(across > 10, "pairs across the faces ({across})");
             assert_eq!(keys(&list, &ids), expected);
             assert_colouring_is_sound(&list, positions.len());
-            assert_eq!(list.phases.len(), if cells_x % 2 == 1 { 3 } else { 2 });
+            assert_eq!(list.phases.len(), if cells_x == 3 { 3 } else { 2 });
+            let slab_count = list.slab_offsets.len() - 1;
+            assert_eq!(
+                slab_count as i64,
+                if cells_x >= 5 && cells_x % 2 == 1 {
+                    cells_x - 1
+                } else {
+                    cells_x
+                }
+            );
         }
     }
 
