@@ -220,7 +220,7 @@ pub fn compute(
     list: &NeighborList,
     states: &mut [BondState],
     rotation: Option<PassRotation<'_>>,
-    heat: Option<PassHeat<'_>>,
+    mut heat: Option<PassHeat<'_>>,
 ) -> ForceSummary {
     let parallel = crate::worth_parallel(particles.len());
     let mut forces = std::mem::take(&mut particles.force);
@@ -230,7 +230,6 @@ pub fn compute(
         Some(PassRotation { rotation, slots }) => (Some(rotation), Some(slots)),
         None => (None, None),
     };
-    let mut heat = heat;
     if let Some(r) = &mut rotation {
         fill(&mut r.torque, DVec3::ZERO, parallel);
     }
@@ -318,8 +317,7 @@ fn owner_pairs(
 ) {
     let a = window.owner();
     let periodic = model.periodic.as_ref();
-    let (x_a, v_a, r_a, m_a) = (
-        particles.position[a],
+    let (v_a, r_a, m_a) = (
         particles.velocity[a],
         particles.radius[a],
         particles.mass[a],
@@ -330,38 +328,33 @@ fn owner_pairs(
     let partners = list.partners();
     for p in window.slots() {
         let b = partners[p] as usize;
-        let mut separation = particles.position[b] - x_a;
-        if let Some(box_) = periodic {
-            separation = box_.minimum_image(separation);
-        }
+        let separation = pair_separation(periodic, particles, a, b);
         let r_b = particles.radius[b];
         let reach = r_a + r_b;
         let distance_squared = separation.length_squared();
         if distance_squared >= reach * reach {
             // Most candidate pairs are apart: no square root, no division, and no write unless
             // the slot still holds something from an earlier contact.
-            {
-                if targets.states.read(window, p) != BondState::Unbonded {
+            if targets.states.read(window, p) != BondState::Unbonded {
+                targets
+                    .states
+                    .update(window, p, |s| *s = BondState::Unbonded);
+            }
+            if let Some(slots) = &targets.tangential {
+                let held = slots.read(window, p);
+                if held != PairTangential::default() {
+                    // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is
+                    // lost, half to each particle.
+                    slots.update(window, p, |t| *t = PairTangential::default());
+                    lost_a += 0.5 * held.spring_energy;
                     targets
-                        .states
-                        .update(window, p, |s| *s = BondState::Unbonded);
+                        .lost
+                        .update(window, b, |l| *l += 0.5 * held.spring_energy);
                 }
-                if let Some(slots) = &targets.tangential {
-                    let held = slots.read(window, p);
-                    if held != PairTangential::default() {
-                        // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held
-                        // is lost, half to each particle.
-                        slots.update(window, p, |t| *t = PairTangential::default());
-                        lost_a += 0.5 * held.spring_energy;
-                        targets
-                            .lost
-                            .update(window, b, |l| *l += 0.5 * held.spring_energy);
-                    }
-                }
-                if let Some(h) = &targets.heat {
-                    if h.conductance.read(window, p) != 0.0 {
-                        h.conductance.update(window, p, |c| *c = 0.0);
-                    }
+            }
+            if let Some(h) = &targets.heat {
+                if h.conductance.read(window, p) != 0.0 {
+                    h.conductance.update(window, p, |c| *c = 0.0);
                 }
             }
             continue;
@@ -546,13 +539,10 @@ fn particle_pass(
             let overlap = wall_overlap(model, state, k, w);
             if overlap <= 0.0 {
                 if let Some(slots) = &walls {
-                    {
-                        let held = slots.read(window, k * stride + w);
-                        if held != WallTangential::default() {
-                            lost += held.spring_energy;
-                            slots
-                                .update(window, k * stride + w, |s| *s = WallTangential::default());
-                        }
+                    let held = slots.read(window, k * stride + w);
+                    if held != WallTangential::default() {
+                        lost += held.spring_energy;
+                        slots.update(window, k * stride + w, |s| *s = WallTangential::default());
                     }
                 }
                 continue;
@@ -602,38 +592,32 @@ fn particle_pass(
                 force += step.force;
                 torque_k += arm * normal.cross(step.force) + step.rolling_torque;
                 lost += step.lost;
-                {
-                    slots.update(window, k * stride + w, |s| {
-                        *s = WallTangential {
-                            history: step.history,
-                            spring_energy: step.spring_energy,
-                        };
-                    });
-                }
+                slots.update(window, k * stride + w, |s| {
+                    *s = WallTangential {
+                        history: step.history,
+                        spring_energy: step.spring_energy,
+                    };
+                });
             }
         }
         let mut total = DVec3::ZERO;
-        {
-            force_out.update(window, k, |f| {
-                *f += force;
-                total = *f;
-            });
-            lost_out.update(window, k, |l| *l += lost);
-            if let Some(t) = &torque {
-                t.update(window, k, |t| *t += torque_k);
-            }
+        force_out.update(window, k, |f| {
+            *f += force;
+            total = *f;
+        });
+        lost_out.update(window, k, |l| *l += lost);
+        if let Some(t) = &torque {
+            t.update(window, k, |t| *t += torque_k);
         }
         let heat_rate = heat.as_ref().map_or(
             0.0,
             |(thermal_model, temperature, laser_power, capacity, flow, boundary, conductance)| {
                 let (outside, outside_conductance) =
                     thermal::boundary_heat(thermal_model, &model.walls, state, k, temperature[k]);
-                {
-                    boundary.update(window, k, |b| *b = outside);
-                    flow.update(window, k, |q| *q += outside + laser_power[k]);
-                    conductance.update(window, k, |g| *g += outside_conductance);
-                    conductance.read(window, k) / capacity[k]
-                }
+                boundary.update(window, k, |b| *b = outside);
+                flow.update(window, k, |q| *q += outside + laser_power[k]);
+                conductance.update(window, k, |g| *g += outside_conductance);
+                conductance.read(window, k) / capacity[k]
             },
         );
         let mut summary = ForceSummary {
@@ -694,23 +678,13 @@ impl ForceSummary {
     /// Combines two partial summaries; associative and commutative, so any reduction tree gives
     /// the same result.
     #[must_use]
-    fn merge(self, other: Self) -> Self {
-        let overlap = if other.max_overlap_ratio > self.max_overlap_ratio
-            || (other.max_overlap_ratio == self.max_overlap_ratio
-                && other.max_overlap_particle < self.max_overlap_particle)
-        {
-            other
-        } else {
-            self
+    fn merge(mut self, other: Self) -> Self {
+        self.observe_overlap(other.max_overlap_ratio, other.max_overlap_particle);
+        self.max_heat_rate = self.max_heat_rate.max(other.max_heat_rate);
+        self.non_finite_force = match (self.non_finite_force, other.non_finite_force) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
         };
-        Self {
-            max_heat_rate: self.max_heat_rate.max(other.max_heat_rate),
-            max_overlap_ratio: overlap.max_overlap_ratio,
-            max_overlap_particle: overlap.max_overlap_particle,
-            non_finite_force: match (self.non_finite_force, other.non_finite_force) {
-                (Some(a), Some(b)) => Some(a.min(b)),
-                (a, b) => a.or(b),
-            },
-        }
+        self
     }
 }

@@ -326,8 +326,9 @@ pub fn update_conductances(
         if overlap <= 0.0 {
             return 0.0;
         }
-        let (ra, rb) = (particles.radius[a], particles.radius[b]);
-        pair_conductance(model, particles, a, b, overlap, ra * rb / (ra + rb))
+        let effective_radius =
+            crate::contact::hertz::effective_radius(particles.radius[a], particles.radius[b]);
+        pair_conductance(model, particles, a, b, overlap, effective_radius)
     }));
 }
 
