@@ -10,17 +10,7 @@ fn run(threads: usize) -> Simulation {
     let text = common::scene_text("laser_track.toml");
     // 0.2 ms settling, then 0.6 ms of the track: enough for particles to melt and bond.
     let text = text.replace("duration_s = 3.5e-3", "duration_s = 8e-4");
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
-    pool.install(|| {
-        let mut sim = common::simulation(&text);
-        for _ in 0..sim.model.steps {
-            sim.step();
-        }
-        sim
-    })
+    common::run_on_threads(&text, threads)
 }
 
 #[test]
@@ -62,17 +52,7 @@ fn run_with_friction(threads: usize) -> Simulation {
             "damping_ratio = 0.3 ",
             "friction_coefficient = 0.5\nrolling_friction_coefficient = 0.05\ndamping_ratio = 0.3 ",
         );
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
-    pool.install(|| {
-        let mut sim = common::simulation(&text);
-        for _ in 0..sim.model.steps {
-            sim.step();
-        }
-        sim
-    })
+    common::run_on_threads(&text, threads)
 }
 
 #[test]

@@ -57,16 +57,11 @@ fn column_settles_stably_and_identically_on_one_and_two_threads() {
     let two = run(2);
 
     // Determinism: every coordinate bit for bit.
-    let bits = |s: &Simulation| -> Vec<u64> {
-        s.particles
-            .position
-            .iter()
-            .chain(&s.particles.velocity)
-            .flat_map(|v| v.to_array())
-            .map(f64::to_bits)
-            .collect()
-    };
-    assert_eq!(bits(&one.sim), bits(&two.sim), "1 and 2 threads differ");
+    assert_eq!(
+        common::position_velocity_bits(&one.sim),
+        common::position_velocity_bits(&two.sim),
+        "1 and 2 threads differ"
+    );
 
     let end = one.sim.diagnostics();
     eprintln!(

@@ -202,32 +202,16 @@ fn periodic_column(threads: usize) -> Simulation {
             "damping_ratio = 0.3      # restitution ≈ 0.42 (tests/hertz_impact.rs)",
             "damping_ratio = 0.3\nfriction_coefficient = 0.5",
         );
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
-    pool.install(|| {
-        let mut sim = common::simulation(&text);
-        for _ in 0..sim.model.steps {
-            sim.step();
-        }
-        sim
-    })
+    common::run_on_threads(&text, threads)
 }
 
 #[test]
 fn a_periodic_frictional_column_is_bitwise_identical_on_one_and_two_threads() {
     let (one, two) = (periodic_column(1), periodic_column(2));
-    let bits = |s: &Simulation| -> Vec<u64> {
-        s.particles
-            .position
-            .iter()
-            .chain(&s.particles.velocity)
-            .flat_map(|v| v.to_array())
-            .map(f64::to_bits)
-            .collect()
-    };
-    assert_eq!(bits(&one), bits(&two));
+    assert_eq!(
+        common::position_velocity_bits(&one),
+        common::position_velocity_bits(&two)
+    );
     // Spheres touch across the faces: pairs in contact by their minimum image only (O(n²)).
     let p = &one.particles;
     let periodic = one.model.periodic.unwrap();

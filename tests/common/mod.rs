@@ -91,6 +91,35 @@ pub fn simulation(text: &str) -> Simulation {
     Simulation::new(model, particles)
 }
 
+/// Sets up the scene `text` and steps it to its end on a pool of `threads` threads.
+#[must_use]
+pub fn run_on_threads(text: &str, threads: usize) -> Simulation {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool");
+    pool.install(|| {
+        let mut sim = simulation(text);
+        for _ in 0..sim.model.steps {
+            sim.step();
+        }
+        sim
+    })
+}
+
+/// The bits of every position and velocity coordinate, in storage order: equal for two runs that
+/// are bitwise the same.
+#[must_use]
+pub fn position_velocity_bits(sim: &Simulation) -> Vec<u64> {
+    sim.particles
+        .position
+        .iter()
+        .chain(&sim.particles.velocity)
+        .flat_map(|v| v.to_array())
+        .map(f64::to_bits)
+        .collect()
+}
+
 /// The text of a shipped scene, `scenes/<name>`.
 #[must_use]
 pub fn scene_text(name: &str) -> String {
