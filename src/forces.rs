@@ -18,6 +18,7 @@ use rayon::prelude::*;
 use crate::contact::{self, BondState, FrictionParams, PairKinematics, hertz, rolling, tangential};
 use crate::model::Model;
 use crate::neighbor::NeighborList;
+use crate::pair_history::{HistoryTargets, PairTangential, TangentialHistories};
 use crate::particles::{Particles, Rotation, WallTangential};
 use crate::periodic::Periodic;
 use crate::scatter::{self, PerParticle, PerSlot, Scatter, Window};
@@ -66,29 +67,6 @@ fn unit_normal(separation: DVec3, distance: f64) -> DVec3 {
     }
 }
 
-/// Per pair slot, for scenes with friction or rolling resistance: the tangential history,
-/// carried over neighbour-list rebuilds by the pair's ids.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct PairTangential {
-    /// Tangential displacement ξ [m] of the owner relative to the partner, world frame, turned
-    /// into the current tangent plane at each use (M.58). It changes sign when the pair's owner
-    /// changes ends at a rebuild.
-    pub history: DVec3,
-    /// Spring energy `½ k_t |ξ|²` at the last evaluation [J] (M.63).
-    pub spring_energy: f64,
-}
-
-impl PairTangential {
-    /// The same spring seen from the other particle.
-    #[must_use]
-    pub fn turned(self) -> Self {
-        Self {
-            history: -self.history,
-            ..self
-        }
-    }
-}
-
 /// What the force pass needs and fills for scenes with `[thermal]`: the contact conductances
 /// and the first thermal substep's heat balance (M.47), computed with the forces.
 #[derive(Debug)]
@@ -118,8 +96,8 @@ pub struct PassHeat<'a> {
 pub struct PassRotation<'a> {
     /// Angular velocities, torques and wall histories.
     pub rotation: &'a mut Rotation,
-    /// Per pair slot: the tangential history.
-    pub slots: &'a mut [PairTangential],
+    /// The tangential histories of the pairs in contact.
+    pub histories: &'a mut TangentialHistories,
 }
 
 /// One contact as the tangential and rolling laws see it (a pair, or a particle and a wall).
@@ -226,8 +204,11 @@ pub fn compute(
     let mut forces = std::mem::take(&mut particles.force);
     let mut dissipated = std::mem::take(&mut particles.dissipated);
     fill(&mut forces, DVec3::ZERO, parallel);
-    let (mut rotation, slots) = match rotation {
-        Some(PassRotation { rotation, slots }) => (Some(rotation), Some(slots)),
+    let (mut rotation, histories) = match rotation {
+        Some(PassRotation {
+            rotation,
+            histories,
+        }) => (Some(rotation), Some(histories)),
         None => (None, None),
     };
     if let Some(r) = &mut rotation {
@@ -251,7 +232,7 @@ pub fn compute(
             lost: Scatter::new(&mut dissipated),
             states: Scatter::new(states),
             torque,
-            tangential: slots.map(Scatter::new),
+            tangential: histories.map(TangentialHistories::targets),
             heat: heat.as_mut().map(|h| HeatTargets {
                 model: h.model,
                 melted: h.melted,
@@ -289,7 +270,7 @@ struct PairTargets<'a> {
     lost: Scatter<'a, f64, PerParticle>,
     states: Scatter<'a, BondState, PerSlot>,
     torque: Option<Scatter<'a, DVec3, PerParticle>>,
-    tangential: Option<Scatter<'a, PairTangential, PerSlot>>,
+    tangential: Option<HistoryTargets<'a>>,
     heat: Option<HeatTargets<'a>>,
 }
 
@@ -326,6 +307,9 @@ fn owner_pairs(
     let (mut force_a, mut lost_a, mut torque_a) = (DVec3::ZERO, 0.0, DVec3::ZERO);
     let (mut heat_a, mut conductance_a) = (0.0, 0.0);
     let partners = list.partners();
+    if let Some(histories) = &targets.tangential {
+        histories.prefetch(window);
+    }
     for p in window.slots() {
         let b = partners[p] as usize;
         let separation = pair_separation(periodic, particles, a, b);
@@ -340,12 +324,11 @@ fn owner_pairs(
                     .states
                     .update(window, p, |s| *s = BondState::Unbonded);
             }
-            if let Some(slots) = &targets.tangential {
-                let held = slots.read(window, p);
-                if held != PairTangential::default() {
-                    // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is
-                    // lost, half to each particle.
-                    slots.update(window, p, |t| *t = PairTangential::default());
+            if let Some(histories) = &targets.tangential {
+                // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is
+                // lost, half to each particle.
+                let held = histories.release(window, p);
+                if held.spring_energy != 0.0 {
                     lost_a += 0.5 * held.spring_energy;
                     targets
                         .lost
@@ -397,7 +380,7 @@ fn owner_pairs(
             targets.states.update(window, p, |s| *s = outcome.state);
         }
         let mut force_on_a = -outcome.force * normal;
-        if let (Some(slots), Some(omega), Some(tables)) =
+        if let (Some(histories), Some(omega), Some(tables)) =
             (&targets.tangential, omega, model.friction.as_ref())
         {
             // Lever arms to the middle of the overlap (M.60).
@@ -419,7 +402,7 @@ fn owner_pairs(
                 elastic_normal_force: outcome.elastic,
                 bonded: outcome.state == BondState::Bonded,
             };
-            let held = slots.read(window, p);
+            let (entry, held) = histories.read(window, p);
             let step = tangential_step(
                 friction,
                 params.damping_ratio,
@@ -429,14 +412,15 @@ fn owner_pairs(
                 held.history,
                 held.spring_energy,
             );
-            {
-                slots.update(window, p, |t| {
-                    *t = PairTangential {
-                        history: step.history,
-                        spring_energy: step.spring_energy,
-                    };
-                });
-            }
+            histories.write(
+                window,
+                p,
+                entry,
+                PairTangential {
+                    history: step.history,
+                    spring_energy: step.spring_energy,
+                },
+            );
             force_on_a += step.force;
             lost += step.lost;
             let lever = normal.cross(step.force);

@@ -22,6 +22,7 @@ pub mod laser;
 pub mod model;
 pub mod neighbor;
 pub mod output;
+pub mod pair_history;
 pub mod particles;
 pub mod periodic;
 pub mod scatter;

@@ -74,6 +74,24 @@ pub struct HeldPairs<T> {
     entries: Vec<((u64, u64), bool, T)>,
 }
 
+impl<T> HeldPairs<T> {
+    /// The value held for the pair of the particles with ids `owner` and `partner`, and whether
+    /// its owner changed ends (a history oriented owner → partner then flips sign).
+    #[must_use]
+    pub fn find(&self, owner: u64, partner: u64) -> Option<(&T, bool)> {
+        let key = (owner.min(partner), owner.max(partner));
+        let e = self.entries.binary_search_by(|(k, ..)| k.cmp(&key)).ok()?;
+        let (_, owner_was_lower, value) = &self.entries[e];
+        Some((value, *owner_was_lower != (owner < partner)))
+    }
+
+    /// True when no pair is held.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+}
+
 impl<T> Default for HeldPairs<T> {
     fn default() -> Self {
         Self {
@@ -239,24 +257,33 @@ impl NeighborList {
         let n = positions.len();
         let grid = Grid::new(positions, radii, self.skin, self.periodic.as_ref());
         let cells: Vec<[i64; 3]> = positions.par_iter().map(|x| grid.cell_of(*x)).collect();
-        let mut order: Vec<([i64; 3], u32)> = cells
-            .iter()
-            .enumerate()
-            .map(|(k, c)| (*c, u32::try_from(k).expect("fewer than 2^32 particles")))
-            .collect();
-        order.par_sort_unstable();
-        // Distinct cells with the start of their run in `order`.
-        let mut runs: Vec<([i64; 3], usize)> = Vec::new();
-        for (k, (c, _)) in order.iter().enumerate() {
-            if runs.last().is_none_or(|(last, _)| last != c) {
-                runs.push((*c, k));
+        // Particle indices by cell (slab-major, as `spatial_order` stores them, so that after a
+        // rebuild's reordering this sort meets sorted input). Indices only: a copy of each cell
+        // beside its index would add 32 bytes per particle to the rebuild's peak memory.
+        let mut order: Vec<u32> =
+            (0..u32::try_from(n).expect("fewer than 2^32 particles")).collect();
+        order.par_sort_unstable_by_key(|&k| (grid.key(cells[k as usize]), k));
+        let cell_key = |k: u32| grid.key(cells[k as usize]);
+        // Distinct cells (by key) with the start of their run in `order`, at exact size.
+        let distinct = 1 + order
+            .windows(2)
+            .filter(|w| cell_key(w[0]) != cell_key(w[1]))
+            .count();
+        let mut runs: Vec<([i64; 3], u32)> = Vec::with_capacity(distinct);
+        for (i, &k) in order.iter().enumerate() {
+            if runs.last().is_none_or(|(last, _)| *last != cell_key(k)) {
+                runs.push((
+                    cell_key(k),
+                    u32::try_from(i).expect("fewer than 2^32 particles"),
+                ));
             }
         }
-        let members = |c: [i64; 3]| -> &[([i64; 3], u32)] {
-            match runs.binary_search_by(|(key, _)| key.cmp(&c)) {
+        let members = |c: [i64; 3]| -> &[u32] {
+            let key = grid.key(c);
+            match runs.binary_search_by(|(run, _)| run.cmp(&key)) {
                 Ok(pos) => {
-                    let start = runs[pos].1;
-                    let end = runs.get(pos + 1).map_or(order.len(), |(_, s)| *s);
+                    let start = runs[pos].1 as usize;
+                    let end = runs.get(pos + 1).map_or(order.len(), |(_, s)| *s as usize);
                     &order[start..end]
                 }
                 Err(_) => &[],
@@ -283,7 +310,7 @@ impl NeighborList {
             for dz in -1..=1 {
                 for dy in -1..=1 {
                     for dx in -1..=1 {
-                        for &(_, j) in members(grid.neighbour_cell(c, [dx, dy, dz])) {
+                        for &j in members(grid.neighbour_cell(c, [dx, dy, dz])) {
                             let j = j as usize;
                             if j == i || !owns(i, j) {
                                 continue;
@@ -314,9 +341,11 @@ impl NeighborList {
                 (counts, found)
             })
             .collect();
-        self.offsets.clear();
+        // Exact sizes: a growing `Vec` would keep up to twice the slots for the list's lifetime.
+        let total: usize = chunks.iter().map(|(_, found)| found.len()).sum();
+        self.offsets = Vec::with_capacity(n + 1);
         self.offsets.push(0);
-        self.partners.clear();
+        self.partners = Vec::with_capacity(total);
         for (counts, found) in chunks {
             for count in counts {
                 let last = *self.offsets.last().unwrap_or(&0);
@@ -369,6 +398,25 @@ impl NeighborList {
         &self.partners
     }
 
+    /// Number of slabs (the units of the colour phases).
+    #[must_use]
+    pub fn slab_count(&self) -> usize {
+        self.slab_offsets.len().saturating_sub(1)
+    }
+
+    /// The particles of slab `s`, ascending.
+    #[must_use]
+    pub fn slab_members(&self, s: usize) -> &[u32] {
+        &self.slab_members[self.slab_offsets[s] as usize..self.slab_offsets[s + 1] as usize]
+    }
+
+    /// Particle `k`'s slab.
+    #[must_use]
+    #[inline]
+    pub fn slab_of(&self, k: usize) -> usize {
+        self.slab_of[k] as usize
+    }
+
     /// Owner `k`'s slots.
     #[must_use]
     #[inline]
@@ -399,9 +447,7 @@ impl NeighborList {
         let run_slab = |s: &u32| {
             let slab = *s as usize;
             let mut partial = identity.clone();
-            let members = &self.slab_members
-                [self.slab_offsets[slab] as usize..self.slab_offsets[slab + 1] as usize];
-            for &k in members {
+            for &k in self.slab_members(slab) {
                 let k = k as usize;
                 // SAFETY: the slabs running concurrently are those of one colour phase, whose
                 // sets {slab, successor} are disjoint (`colour_phases`; tested below), and an
@@ -428,17 +474,25 @@ impl NeighborList {
         total
     }
 
-    /// The pairs for which `held(slot)` gives a value (those with state worth keeping), by id
-    /// key, before the particles are reordered and the list rebuilt.
+    /// The pairs for which `held(slot, owner)` gives a value (those with state worth keeping),
+    /// by id key, before the particles are reordered and the list rebuilt.
     #[must_use]
-    pub fn held_pairs<T>(&self, ids: &[u64], held: impl Fn(usize) -> Option<T>) -> HeldPairs<T> {
-        let mut entries: Vec<((u64, u64), bool, T)> = self
+    pub fn held_pairs<T>(
+        &self,
+        ids: &[u64],
+        held: impl Fn(usize, usize) -> Option<T>,
+    ) -> HeldPairs<T> {
+        // Counted first, so that the entries take exactly their size (they coexist with the old
+        // and the new list: the rebuild's peak memory).
+        let count = self
             .pairs()
-            .filter_map(|(p, owner, partner)| {
-                let (a, b) = (ids[owner], ids[partner]);
-                held(p).map(|value| ((a.min(b), a.max(b)), a < b, value))
-            })
-            .collect();
+            .filter(|&(p, owner, _)| held(p, owner).is_some())
+            .count();
+        let mut entries: Vec<((u64, u64), bool, T)> = Vec::with_capacity(count);
+        entries.extend(self.pairs().filter_map(|(p, owner, partner)| {
+            let (a, b) = (ids[owner], ids[partner]);
+            held(p, owner).map(|value| ((a.min(b), a.max(b)), a < b, value))
+        }));
         entries.sort_unstable_by_key(|(key, ..)| *key);
         HeldPairs { entries }
     }
@@ -458,15 +512,8 @@ impl NeighborList {
             return vec![U::default(); self.partners.len()];
         }
         let lookup = |owner: usize, partner: usize| -> U {
-            let (a, b) = (ids[owner], ids[partner]);
-            let key = (a.min(b), a.max(b));
-            match held.entries.binary_search_by(|(k, ..)| k.cmp(&key)) {
-                Ok(e) => {
-                    let (_, owner_was_lower, v) = &held.entries[e];
-                    value(v, *owner_was_lower != (a < b))
-                }
-                Err(_) => U::default(),
-            }
+            held.find(ids[owner], ids[partner])
+                .map_or_else(U::default, |(v, turned)| value(v, turned))
         };
         // Filled in place, by chunks of owners (a parallel `collect` would hold its pieces and
         // the result at once).
@@ -694,7 +741,7 @@ mod tests {
         assert_eq!(list.pair_count(), 1);
         let (_, owner, _) = list.pairs().next().unwrap();
         let history = if ids[owner] == 7 { 1.0 } else { -1.0 };
-        let held = list.held_pairs(&ids, |_| Some(history));
+        let held = list.held_pairs(&ids, |_, _| Some(history));
         // Swap the storage order of the two particles and bring id 5 close: the pair (3, 7) must
         // keep its history, turned if its owner changed ends; the new pair starts empty.
         positions.swap(0, 1);

@@ -22,6 +22,10 @@ pub enum PerParticle {}
 /// slot).
 #[derive(Debug)]
 pub enum PerSlot {}
+/// Marker: an array indexed by slab of the neighbour list; a pair visit may touch its owner's
+/// slab's element only.
+#[derive(Debug)]
+pub enum PerSlab {}
 
 /// What one visit may access: particles (the owner, or every particle of two slabs) and a range
 /// of slots.
@@ -189,6 +193,35 @@ impl<T> Scatter<'_, T, PerSlot> {
     }
 }
 
+impl<T> Scatter<'_, T, PerSlab> {
+    /// Applies `change` to the element of the owner's slab and returns what it returns.
+    ///
+    /// # Panics
+    /// If the window is not a pair window (a per-particle visit has no slab).
+    #[inline]
+    pub fn update_own<R>(&self, window: &Window<'_>, change: impl FnOnce(&mut T) -> R) -> R {
+        let slab = window.slabs[0];
+        let element = self.element(slab as usize, slab != u32::MAX);
+        // SAFETY: concurrent pair windows have disjoint slab pairs (`Window`'s contract), so no
+        // other thread's window names this slab as its own; the owners of one slab are visited
+        // one after the other by the same task.
+        change(unsafe { &mut *element })
+    }
+}
+
+/// Hints that `value` will be read soon (no effect on the result; none off x86-64).
+#[inline]
+pub fn prefetch<T>(value: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch never faults and changes no state; SSE is part of x86-64.
+    unsafe {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        _mm_prefetch::<_MM_HINT_T0>(std::ptr::from_ref(value).cast());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = value;
+}
+
 /// Calls `visit` once for every particle `0..count`, with a window allowing that particle and its
 /// slots `slots(k)`, in parallel when `parallel`, and reduces the results with `merge`
 /// (associative and commutative, for the result not to depend on the thread count).
@@ -242,5 +275,12 @@ mod tests {
         let slots: Scatter<'_, u8, PerSlot> = Scatter::new(&mut slots);
         slots.update(&window, 4, |s| *s = 1);
         assert!(std::panic::catch_unwind(|| slots.read(&window, 5)).is_err());
+        let mut pools = vec![Vec::new(), Vec::new(), Vec::new()];
+        let pools: Scatter<'_, Vec<u8>, PerSlab> = Scatter::new(&mut pools);
+        pools.update_own(&window, |pool| pool.push(7));
+        // SAFETY: single-threaded test.
+        let particle = unsafe { Window::particle(1, 0..0) };
+        assert!(std::panic::catch_unwind(|| pools.update_own(&particle, |_| ())).is_err());
+        assert_eq!(pools.update_own(&window, |pool| pool.clone()), vec![7]);
     }
 }

@@ -14,11 +14,12 @@
 //! 7. Second half kick (M.32).
 
 use crate::contact::{BondState, NormalParams, hertz, rolling, tangential};
-use crate::forces::{self, ForceSummary, PairTangential};
+use crate::forces::{self, ForceSummary};
 use crate::integrate;
 use crate::laser;
 use crate::model::Model;
 use crate::neighbor::{HeldPairs, NeighborList};
+use crate::pair_history::{PairTangential, TangentialHistories};
 use crate::particles::{Particles, Rotation};
 use crate::thermal::{self, ThermalState};
 
@@ -47,9 +48,9 @@ pub struct Simulation {
     /// Angular velocities, torques and wall contact histories, if the scene has friction or
     /// rolling resistance (otherwise nothing is allocated and no rotation pass runs).
     pub rotation: Option<Rotation>,
-    /// Per pair slot, with rotation only: the tangential history, carried over rebuilds like
-    /// `bond_states`.
-    tangential: Vec<PairTangential>,
+    /// With rotation only: the tangential histories of the pairs in contact, carried over
+    /// rebuilds like `bond_states`.
+    tangential: TangentialHistories,
     /// Steps taken.
     pub step: u64,
     /// Simulated time [s].
@@ -284,7 +285,7 @@ impl Simulation {
             peak_overlap_ratio: 0.0,
             start: StartEnergies::default(),
             rotation,
-            tangential: Vec::new(),
+            tangential: TangentialHistories::default(),
             removed: Removed::default(),
             step: 0,
             time: 0.0,
@@ -386,10 +387,10 @@ impl Simulation {
         // partner, and the owner depends on the storage order).
         let held: Vec<((u64, u64), PairTangential)> = self
             .pair_keys()
-            .filter(|(p, ..)| self.tangential[*p] != PairTangential::default())
-            .map(|(p, key, owner_is_lower)| {
-                let t = self.tangential[p];
-                (key, if owner_is_lower { t } else { t.turned() })
+            .filter_map(|(p, owner, key, owner_is_lower)| {
+                let t = self.tangential.get(&self.neighbors, p, owner);
+                (t != PairTangential::default())
+                    .then_some((key, if owner_is_lower { t } else { t.turned() }))
             })
             .collect();
         RotationRestart {
@@ -516,7 +517,7 @@ impl Simulation {
             peak_overlap_ratio: 0.0,
             start: StartEnergies::default(),
             rotation,
-            tangential: Vec::new(),
+            tangential: TangentialHistories::default(),
             removed: state.removed,
             step: state.step,
             time: 0.0,
@@ -558,12 +559,13 @@ impl Simulation {
             })
             .unwrap_or_default();
         let keys: Vec<_> = sim.pair_keys().collect();
-        for (p, key, owner_is_lower) in keys {
+        for (p, owner, key, owner_is_lower) in keys {
             if bonded.contains(&key) {
                 sim.bond_states[p] = BondState::Bonded;
             }
             if let Some(t) = held.get(&key) {
-                sim.tangential[p] = if owner_is_lower { *t } else { t.turned() };
+                let t = if owner_is_lower { *t } else { t.turned() };
+                sim.tangential.set(&sim.neighbors, p, owner, t);
             }
         }
         sim.update_conductances();
@@ -571,12 +573,12 @@ impl Simulation {
         Ok(sim)
     }
 
-    /// Every pair slot as `(slot, (id_lo, id_hi), whether the owner has the lower id)`.
-    fn pair_keys(&self) -> impl Iterator<Item = (usize, (u64, u64), bool)> + '_ {
+    /// Every pair slot as `(slot, owner, (id_lo, id_hi), whether the owner has the lower id)`.
+    fn pair_keys(&self) -> impl Iterator<Item = (usize, usize, (u64, u64), bool)> + '_ {
         let ids = &self.particles.id;
         self.neighbors.pairs().map(|(p, a, b)| {
             let (ia, ib) = (ids[a], ids[b]);
-            (p, (ia.min(ib), ia.max(ib)), ia < ib)
+            (p, a, (ia.min(ib), ia.max(ib)), ia < ib)
         })
     }
 
@@ -643,14 +645,14 @@ impl Simulation {
                 *x = periodic.wrap(*x);
             }
         }
-        let (states, tangential) = (&self.bond_states, &self.tangential);
-        let held = self.neighbors.held_pairs(&self.particles.id, |p| {
-            let held = (states[p], tangential.get(p).copied().unwrap_or_default());
+        let (states, tangential, list) = (&self.bond_states, &self.tangential, &self.neighbors);
+        let held = self.neighbors.held_pairs(&self.particles.id, |p, owner| {
+            let held = (states[p], tangential.get(list, p, owner));
             (held != (BondState::Unbonded, PairTangential::default())).then_some(held)
         });
         // The old per-slot arrays go before the new ones are built (peak memory).
         self.bond_states = Vec::new();
-        self.tangential = Vec::new();
+        self.tangential = TangentialHistories::default();
         if let Some(t) = &mut self.thermal {
             t.conductance = Vec::new();
         }
@@ -680,13 +682,10 @@ impl Simulation {
         let ids = &self.particles.id;
         self.bond_states = self.neighbors.carry(ids, held, |(state, _), _| *state);
         if self.rotation.is_some() {
-            self.tangential = self.neighbors.carry(
-                ids,
-                held,
-                |(_, t), turned| {
+            self.tangential =
+                TangentialHistories::carry(&self.neighbors, ids, held, |(_, t), turned| {
                     if turned { t.turned() } else { *t }
-                },
-            );
+                });
         }
         if let Some(t) = &mut self.thermal {
             t.conductance = vec![0.0; self.neighbors.pair_count()];
@@ -730,7 +729,7 @@ impl Simulation {
             &mut self.bond_states,
             self.rotation.as_mut().map(|rotation| forces::PassRotation {
                 rotation,
-                slots: &mut self.tangential,
+                histories: &mut self.tangential,
             }),
             heat,
         )
@@ -741,10 +740,7 @@ impl Simulation {
     /// energy it held was not counted either: `dissipated` is reset too).
     fn clear_tangential_history(&mut self) {
         if let Some(rotation) = &mut self.rotation {
-            for slot in &mut self.tangential {
-                slot.history = glam::DVec3::ZERO;
-                slot.spring_energy = 0.0;
-            }
+            self.tangential.clear();
             rotation
                 .wall_contacts
                 .fill(crate::particles::WallTangential::default());
@@ -839,7 +835,7 @@ impl Simulation {
     pub fn bond_state(&self, a: u64, b: u64) -> BondState {
         let key = (a.min(b), a.max(b));
         self.pair_keys()
-            .find(|(_, k, _)| *k == key)
+            .find(|(_, _, k, _)| *k == key)
             .map_or(BondState::Unbonded, |(p, ..)| self.bond_states[p])
     }
 
@@ -849,7 +845,7 @@ impl Simulation {
         let mut bonds: Vec<(u64, u64)> = self
             .pair_keys()
             .filter(|(p, ..)| self.bond_states[*p] == BondState::Bonded)
-            .map(|(_, key, _)| key)
+            .map(|(_, _, key, _)| key)
             .collect();
         bonds.sort_unstable();
         bonds
@@ -893,8 +889,7 @@ impl Simulation {
         if let Some(rotation) = &self.rotation {
             // (M.63): rotation is kinetic energy, the tangential springs store elastic energy.
             d.kinetic_energy += rotation.kinetic_energy(p);
-            d.elastic_energy += self.tangential.iter().map(|t| t.spring_energy).sum::<f64>()
-                + rotation.wall_spring_energy();
+            d.elastic_energy += self.tangential.spring_energy() + rotation.wall_spring_energy();
         }
         d.thermal = self.thermal.as_ref().map(|t| ThermalDiagnostics {
             enthalpy: t.total_enthalpy() + self.removed.enthalpy,
