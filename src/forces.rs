@@ -204,7 +204,7 @@ pub fn compute(
     let mut forces = std::mem::take(&mut particles.force);
     let mut dissipated = std::mem::take(&mut particles.dissipated);
     fill(&mut forces, DVec3::ZERO, parallel);
-    let (mut rotation, histories) = match rotation {
+    let (mut rotation, mut histories) = match rotation {
         Some(PassRotation {
             rotation,
             histories,
@@ -227,27 +227,32 @@ pub fn compute(
             ),
             None => (None, None),
         };
+        let heat = heat.as_mut().map(|h| HeatTargets {
+            model: h.model,
+            melted: h.melted,
+            temperature: h.temperature,
+            conductance: Scatter::new(h.conductance),
+            heat_flow: Scatter::new(h.heat_flow),
+            total_conductance: Scatter::new(h.total_conductance),
+        });
         let targets = PairTargets {
             force: Scatter::new(&mut forces),
             lost: Scatter::new(&mut dissipated),
             states: Scatter::new(states),
             torque,
-            tangential: histories.map(TangentialHistories::targets),
-            heat: heat.as_mut().map(|h| HeatTargets {
-                model: h.model,
-                melted: h.melted,
-                temperature: h.temperature,
-                conductance: Scatter::new(h.conductance),
-                heat_flow: Scatter::new(h.heat_flow),
-                total_conductance: Scatter::new(h.total_conductance),
-            }),
+            tangential: histories.as_mut().map(|h| h.start_pass()),
+            heat,
         };
-        list.for_each_owner(
+        let summary = list.for_each_owner(
             parallel,
             ForceSummary::default(),
             |summary, window| owner_pairs(model, state, list, omega, &targets, summary, window),
             ForceSummary::merge,
-        )
+        );
+        if let Some(h) = histories {
+            h.finish_pass();
+        }
+        summary
     };
     particles.force = forces;
     particles.dissipated = dissipated;
@@ -307,9 +312,6 @@ fn owner_pairs(
     let (mut force_a, mut lost_a, mut torque_a) = (DVec3::ZERO, 0.0, DVec3::ZERO);
     let (mut heat_a, mut conductance_a) = (0.0, 0.0);
     let partners = list.partners();
-    if let Some(histories) = &targets.tangential {
-        histories.prefetch(window);
-    }
     for p in window.slots() {
         let b = partners[p] as usize;
         let separation = pair_separation(periodic, particles, a, b);
@@ -402,7 +404,7 @@ fn owner_pairs(
                 elastic_normal_force: outcome.elastic,
                 bonded: outcome.state == BondState::Bonded,
             };
-            let (entry, held) = histories.read(window, p);
+            let held = histories.read(window, p);
             let step = tangential_step(
                 friction,
                 params.damping_ratio,
@@ -415,7 +417,6 @@ fn owner_pairs(
             histories.write(
                 window,
                 p,
-                entry,
                 PairTangential {
                     history: step.history,
                     spring_energy: step.spring_energy,

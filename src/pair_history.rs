@@ -3,13 +3,14 @@
 //! A Verlet list holds every pair closer than the cut-off plus the skin: on the LIGGGHTS bed
 //! about 4.8 slots per particle, of which about one touches. Only touching pairs have a
 //! tangential spring, so a 32-byte history per slot would mostly hold zeros. Instead each slot
-//! has a 4-byte entry number ([`NO_ENTRY`] when it is not in contact), and the histories live in
-//! one pool per slab of the list. A contact that forms during the pair pass takes an entry from
-//! its owner's slab's pool (a released one first) and gives it back when it ends: one task visits
-//! a slab's owners at a time, in a fixed order, so the pool needs no synchronisation and the
-//! entry numbers do not depend on the thread count. A pool grows by an eighth when full, not
-//! twice its size: it holds the slab's simultaneous contacts, which change slowly. At a rebuild
-//! the non-zero histories are carried over by id key into pools of exactly their size.
+//! has a 4-byte entry number ([`NO_ENTRY`] when it is not in contact), and the springs live in
+//! one pool per slab of the list, in the order the pair pass meets them. Each pool has two
+//! buffers: the pass reads a contact's spring from the last pass's buffer and appends its new
+//! spring to the other, then the two swap. The reads therefore walk each buffer forwards, as the
+//! hardware prefetchers like (a pool with reused entries was measured 15-18 % slower on the 20k
+//! bed), and new contacts need no free list. One task visits a slab's owners at a time, in a
+//! fixed order, so the pools need no locks and the entry numbers do not depend on the thread
+//! count. A rebuild carries the non-zero springs over by id key.
 
 use rayon::prelude::*;
 
@@ -42,41 +43,20 @@ impl PairTangential {
     }
 }
 
-/// The histories of one slab's contacts.
+/// The springs of one slab's contacts: those the last pass left (`springs`, read by the next
+/// pass) and those the running pass writes (`next`).
 #[derive(Debug, Clone, Default)]
 pub struct Pool {
     springs: Vec<PairTangential>,
-    /// Released entries, reused first (the last released first).
-    free: Vec<u32>,
+    next: Vec<PairTangential>,
 }
 
 impl Pool {
-    /// Takes an entry for `value`.
+    /// Appends `value` to `buffer` and returns its entry number.
     #[inline]
-    fn take(&mut self, value: PairTangential) -> u32 {
-        if let Some(e) = self.free.pop() {
-            self.springs[e as usize] = value;
-            return e;
-        }
-        if self.springs.len() == self.springs.capacity() {
-            self.springs.reserve_exact(self.springs.len() / 8 + 16);
-        }
-        self.springs.push(value);
-        u32::try_from(self.springs.len() - 1).expect("fewer than 2^32 contacts in a slab")
-    }
-
-    /// Gives entry `e` back and returns what it held.
-    #[inline]
-    fn release(&mut self, e: u32) -> PairTangential {
-        if self.free.len() == self.free.capacity() {
-            self.free.reserve_exact(self.free.len() / 8 + 16);
-        }
-        self.free.push(e);
-        std::mem::take(&mut self.springs[e as usize])
-    }
-
-    fn in_use(&self) -> usize {
-        self.springs.len() - self.free.len()
+    fn append(buffer: &mut Vec<PairTangential>, value: PairTangential) -> u32 {
+        buffer.push(value);
+        u32::try_from(buffer.len() - 1).expect("fewer than 2^32 contacts in a slab")
     }
 }
 
@@ -139,7 +119,7 @@ impl TangentialHistories {
         for (pool, slots) in histories.pools.iter_mut().zip(found) {
             pool.springs.reserve_exact(slots.len());
             for (p, spring) in slots {
-                histories.entry[p as usize] = pool.take(spring);
+                histories.entry[p as usize] = Pool::append(&mut pool.springs, spring);
             }
         }
         histories
@@ -159,7 +139,7 @@ impl TangentialHistories {
     pub fn set(&mut self, list: &NeighborList, p: usize, owner: usize, value: PairTangential) {
         let pool = &mut self.pools[list.slab_of(owner)];
         match self.entry[p] {
-            NO_ENTRY => self.entry[p] = pool.take(value),
+            NO_ENTRY => self.entry[p] = Pool::append(&mut pool.springs, value),
             e => pool.springs[e as usize] = value,
         }
     }
@@ -185,15 +165,26 @@ impl TangentialHistories {
     /// Number of entries in use (pairs with a spring).
     #[must_use]
     pub fn entries(&self) -> usize {
-        self.pools.iter().map(Pool::in_use).sum()
+        self.pools.iter().map(|pool| pool.springs.len()).sum()
     }
 
-    /// Shared access for the pair pass.
+    /// Shared access for one pair pass, which must visit every owner once; call
+    /// [`Self::finish_pass`] after it.
     #[must_use]
-    pub fn targets(&mut self) -> HistoryTargets<'_> {
+    pub fn start_pass(&mut self) -> HistoryTargets<'_> {
+        for pool in &mut self.pools {
+            pool.next.clear();
+        }
         HistoryTargets {
             entry: Scatter::new(&mut self.entry),
             pools: Scatter::new(&mut self.pools),
+        }
+    }
+
+    /// Makes the springs the pass wrote the ones the next pass reads.
+    pub fn finish_pass(&mut self) {
+        for pool in &mut self.pools {
+            std::mem::swap(&mut pool.springs, &mut pool.next);
         }
     }
 }
@@ -206,55 +197,39 @@ pub struct HistoryTargets<'a> {
 }
 
 impl HistoryTargets<'_> {
-    /// Asks the memory system for the histories of the window's slots, ahead of their use (a
-    /// pool's entries are sparse in the pass's path, and the hardware prefetchers miss them).
-    #[inline]
-    pub fn prefetch(&self, window: &Window<'_>) {
-        self.pools.update_own(window, |pool| {
-            for p in window.slots() {
-                let e = self.entry.read(window, p);
-                if let Some(spring) = pool.springs.get(e as usize) {
-                    crate::scatter::prefetch(spring);
-                }
-            }
-        });
-    }
-
-    /// Slot `p`'s entry number and history (zero without an entry).
+    /// Slot `p`'s spring as the last pass left it (zero without an entry).
     #[inline]
     #[must_use]
-    pub fn read(&self, window: &Window<'_>, p: usize) -> (u32, PairTangential) {
+    pub fn read(&self, window: &Window<'_>, p: usize) -> PairTangential {
         match self.entry.read(window, p) {
-            NO_ENTRY => (NO_ENTRY, PairTangential::default()),
-            e => (
-                e,
-                self.pools
-                    .update_own(window, |pool| pool.springs[e as usize]),
-            ),
+            NO_ENTRY => PairTangential::default(),
+            e => self
+                .pools
+                .update_own(window, |pool| pool.springs[e as usize]),
         }
     }
 
-    /// Stores slot `p`'s history; `entry` is what [`Self::read`] gave. A zero history is not
-    /// given an entry.
+    /// Stores slot `p`'s spring for the next pass (a zero spring takes no entry).
     #[inline]
-    pub fn write(&self, window: &Window<'_>, p: usize, entry: u32, value: PairTangential) {
-        if entry != NO_ENTRY {
+    pub fn write(&self, window: &Window<'_>, p: usize, value: PairTangential) {
+        let e = if value == PairTangential::default() {
+            NO_ENTRY
+        } else {
             self.pools
-                .update_own(window, |pool| pool.springs[entry as usize] = value);
-        } else if value != PairTangential::default() {
-            let e = self.pools.update_own(window, |pool| pool.take(value));
-            self.entry.update(window, p, |slot| *slot = e);
-        }
+                .update_own(window, |pool| Pool::append(&mut pool.next, value))
+        };
+        self.entry.update(window, p, |slot| *slot = e);
     }
 
-    /// The contact of slot `p` ended: returns what its spring held and gives its entry back.
+    /// The contact of slot `p` ended: returns what its spring held, and the slot keeps none.
     #[inline]
     pub fn release(&self, window: &Window<'_>, p: usize) -> PairTangential {
         match self.entry.read(window, p) {
             NO_ENTRY => PairTangential::default(),
             e => {
                 self.entry.update(window, p, |slot| *slot = NO_ENTRY);
-                self.pools.update_own(window, |pool| pool.release(e))
+                self.pools
+                    .update_own(window, |pool| pool.springs[e as usize])
             }
         }
     }
@@ -323,5 +298,41 @@ mod tests {
                 assert_eq!(t, spring(sign * lower as f64), "pair from id {lower}");
             }
         }
+    }
+
+    #[test]
+    fn a_pass_reads_the_last_pass_springs_and_drops_released_ones() {
+        // A row of five spheres: four touching pairs, over at least two slabs.
+        let positions: Vec<DVec3> = (0..5).map(|i| DVec3::X * (1.9 * f64::from(i))).collect();
+        let mut list = NeighborList::new(0.5, None);
+        list.build(&positions, &[1.0; 5]);
+        let mut histories = TangentialHistories::new(&list);
+        // Each pass adds 1 to every spring, except that the pair of slot 0 ends at pass 3.
+        for pass in 1..=4 {
+            let targets = histories.start_pass();
+            list.for_each_owner(
+                false,
+                (),
+                |(), window| {
+                    for p in window.slots() {
+                        if p == 0 && pass >= 3 {
+                            let released = targets.release(window, p);
+                            assert_eq!(released, spring(if pass == 3 { 2.0 } else { 0.0 }));
+                        } else {
+                            let before = targets.read(window, p);
+                            targets.write(window, p, spring(before.history.x + 1.0));
+                        }
+                    }
+                },
+                |(), ()| (),
+            );
+            histories.finish_pass();
+        }
+        assert_eq!(histories.entries(), 3);
+        for (p, owner, _) in list.pairs() {
+            let expected = if p == 0 { 0.0 } else { 4.0 };
+            assert_eq!(histories.get(&list, p, owner), spring(expected), "slot {p}");
+        }
+        assert_eq!(histories.spring_energy(), 12.0);
     }
 }

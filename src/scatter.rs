@@ -209,19 +209,6 @@ impl<T> Scatter<'_, T, PerSlab> {
     }
 }
 
-/// Hints that `value` will be read soon (no effect on the result; none off x86-64).
-#[inline]
-pub fn prefetch<T>(value: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch never faults and changes no state; SSE is part of x86-64.
-    unsafe {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        _mm_prefetch::<_MM_HINT_T0>(std::ptr::from_ref(value).cast());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
-}
-
 /// Calls `visit` once for every particle `0..count`, with a window allowing that particle and its
 /// slots `slots(k)`, in parallel when `parallel`, and reduces the results with `merge`
 /// (associative and commutative, for the result not to depend on the thread count).
