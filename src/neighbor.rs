@@ -70,9 +70,14 @@ pub struct NeighborList {
 /// lets the old per-slot arrays be freed before the new ones are allocated.
 #[derive(Debug, Clone)]
 pub struct HeldPairs<T> {
-    /// `((id_lo, id_hi), whether the old owner had the lower id, value)`, sorted by key.
-    entries: Vec<((u64, u64), bool, T)>,
+    /// `((id_lo, id_hi | OWNER_WAS_LOWER), value)`, sorted by key. The flag (whether the old
+    /// owner had the lower id) rides in the top bit of `id_hi`, which ids never reach: an entry
+    /// is then 16 bytes plus the value, not 24 (these entries are the rebuild's peak memory).
+    entries: Vec<((u64, u64), T)>,
 }
+
+/// The flag bit of a held pair's key (see [`HeldPairs`]).
+const OWNER_WAS_LOWER: u64 = 1 << 63;
 
 impl<T> HeldPairs<T> {
     /// The value held for the pair of the particles with ids `owner` and `partner`, and whether
@@ -80,9 +85,13 @@ impl<T> HeldPairs<T> {
     #[must_use]
     pub fn find(&self, owner: u64, partner: u64) -> Option<(&T, bool)> {
         let key = (owner.min(partner), owner.max(partner));
-        let e = self.entries.binary_search_by(|(k, ..)| k.cmp(&key)).ok()?;
-        let (_, owner_was_lower, value) = &self.entries[e];
-        Some((value, *owner_was_lower != (owner < partner)))
+        let e = self
+            .entries
+            .binary_search_by(|((lo, hi), _)| (*lo, hi & !OWNER_WAS_LOWER).cmp(&key))
+            .ok()?;
+        let ((_, hi), value) = &self.entries[e];
+        let owner_was_lower = hi & OWNER_WAS_LOWER != 0;
+        Some((value, owner_was_lower != (owner < partner)))
     }
 
     /// True when no pair is held.
@@ -488,12 +497,14 @@ impl NeighborList {
             .pairs()
             .filter(|&(p, owner, _)| held(p, owner).is_some())
             .count();
-        let mut entries: Vec<((u64, u64), bool, T)> = Vec::with_capacity(count);
+        let mut entries: Vec<((u64, u64), T)> = Vec::with_capacity(count);
         entries.extend(self.pairs().filter_map(|(p, owner, partner)| {
             let (a, b) = (ids[owner], ids[partner]);
-            held(p, owner).map(|value| ((a.min(b), a.max(b)), a < b, value))
+            assert!(a.max(b) < OWNER_WAS_LOWER, "particle ids below 2^63");
+            let flag = if a < b { OWNER_WAS_LOWER } else { 0 };
+            held(p, owner).map(|value| ((a.min(b), a.max(b) | flag), value))
         }));
-        entries.sort_unstable_by_key(|(key, ..)| *key);
+        entries.sort_unstable_by_key(|((lo, hi), _)| (*lo, hi & !OWNER_WAS_LOWER));
         HeldPairs { entries }
     }
 

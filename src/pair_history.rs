@@ -52,9 +52,13 @@ pub struct Pool {
 }
 
 impl Pool {
-    /// Appends `value` to `buffer` and returns its entry number.
+    /// Appends `value` to `buffer` and returns its entry number. A full buffer grows by an
+    /// eighth, not twice its size: it holds the slab's contacts, whose number changes slowly.
     #[inline]
     fn append(buffer: &mut Vec<PairTangential>, value: PairTangential) -> u32 {
+        if buffer.len() == buffer.capacity() {
+            buffer.reserve_exact(buffer.len() / 8 + 16);
+        }
         buffer.push(value);
         u32::try_from(buffer.len() - 1).expect("fewer than 2^32 contacts in a slab")
     }
@@ -141,6 +145,13 @@ impl TangentialHistories {
         match self.entry[p] {
             NO_ENTRY => self.entry[p] = Pool::append(&mut pool.springs, value),
             e => pool.springs[e as usize] = value,
+        }
+    }
+
+    /// Frees the write buffers (scratch between passes; the next pass allocates them again).
+    pub fn drop_spare_buffers(&mut self) {
+        for pool in &mut self.pools {
+            pool.next = Vec::new();
         }
     }
 

@@ -538,7 +538,7 @@ impl Simulation {
             sim.particles.position.clone()
         };
         sim.neighbors.build(&reference, &sim.particles.radius);
-        sim.carry_pairs(&HeldPairs::default());
+        sim.carry_pairs(&HeldPairs::default(), &HeldPairs::default());
         let bonded: std::collections::HashSet<(u64, u64)> = state.bonded.into_iter().collect();
         let held: std::collections::HashMap<(u64, u64), PairTangential> = state
             .rotation
@@ -645,10 +645,16 @@ impl Simulation {
                 *x = periodic.wrap(*x);
             }
         }
+        // The pools' write buffers are scratch between passes: gone before the held copies.
+        self.tangential.drop_spare_buffers();
         let (states, tangential, list) = (&self.bond_states, &self.tangential, &self.neighbors);
-        let held = self.neighbors.held_pairs(&self.particles.id, |p, owner| {
-            let held = (states[p], tangential.get(list, p, owner));
-            (held != (BondState::Unbonded, PairTangential::default())).then_some(held)
+        let ids = &self.particles.id;
+        let bonds = list.held_pairs(ids, |p, _| {
+            (states[p] != BondState::Unbonded).then_some(states[p])
+        });
+        let springs = list.held_pairs(ids, |p, owner| {
+            let spring = tangential.get(list, p, owner);
+            (spring != PairTangential::default()).then_some(spring)
         });
         // The old per-slot arrays go before the new ones are built (peak memory).
         self.bond_states = Vec::new();
@@ -662,7 +668,7 @@ impl Simulation {
         self.reorder(&order);
         let p = &self.particles;
         self.neighbors.build(&p.position, &p.radius);
-        self.carry_pairs(&held);
+        self.carry_pairs(&bonds, &springs);
     }
 
     /// Stores the particles in `order` (`new[i] = old[order[i]]`), dropping those not named.
@@ -677,13 +683,13 @@ impl Simulation {
         self.laser_snapshot.renumber(order);
     }
 
-    /// The pair data of the rebuilt list, from the pairs `held` before the rebuild.
-    fn carry_pairs(&mut self, held: &HeldPairs<(BondState, PairTangential)>) {
+    /// The pair data of the rebuilt list, from the bonds and springs held before the rebuild.
+    fn carry_pairs(&mut self, bonds: &HeldPairs<BondState>, springs: &HeldPairs<PairTangential>) {
         let ids = &self.particles.id;
-        self.bond_states = self.neighbors.carry(ids, held, |(state, _), _| *state);
+        self.bond_states = self.neighbors.carry(ids, bonds, |state, _| *state);
         if self.rotation.is_some() {
             self.tangential =
-                TangentialHistories::carry(&self.neighbors, ids, held, |(_, t), turned| {
+                TangentialHistories::carry(&self.neighbors, ids, springs, |t, turned| {
                     if turned { t.turned() } else { *t }
                 });
         }
