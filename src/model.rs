@@ -673,8 +673,8 @@ fn add_imported(
         };
         let rows = match cfg.format {
             ImportFormat::Csv => import::read_text(&path).and_then(|t| import::parse_csv(&t)),
-            ImportFormat::LiggghtsDump => import::read_text(&path)
-                .and_then(|t| import::parse_liggghts_dump(&t, cfg.timestep))
+            ImportFormat::LiggghtsDump => import::open_text(&path)
+                .and_then(|reader| import::read_liggghts_dump(reader, cfg.timestep))
                 .map(|snapshot| snapshot.particles),
             ImportFormat::AmSimH5 => import::read_am_sim_h5(&path, cfg.frame),
         };

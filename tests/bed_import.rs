@@ -159,6 +159,35 @@ fn a_liggghts_dump_gives_its_last_or_the_chosen_snapshot_sorted_by_id() {
 }
 
 #[test]
+fn a_dump_is_read_snapshot_by_snapshot() {
+    // A broken row in a snapshot that is not chosen does not matter; in the chosen one it is an
+    // error naming its line, and a truncated chosen snapshot names what it announced.
+    let broken_first = DUMP.replacen("1 1 4e-4 5e-4 6e-4", "1 1 4e-4 oops 6e-4", 1);
+    assert_eq!(
+        parse_liggghts_dump(&broken_first, None).unwrap().timestep,
+        200
+    );
+    let error = parse_liggghts_dump(&broken_first, Some(100)).unwrap_err();
+    assert!(
+        error.contains("line 11") && error.contains("oops"),
+        "{error}"
+    );
+    let truncated = &DUMP[..DUMP.rfind("5 1 4e-4").unwrap()];
+    let error = parse_liggghts_dump(truncated, None).unwrap_err();
+    assert!(
+        error.contains("3 atoms announced, the file ends after 2"),
+        "{error}"
+    );
+    assert_eq!(
+        parse_liggghts_dump(truncated, Some(100))
+            .unwrap()
+            .particles
+            .len(),
+        2
+    );
+}
+
+#[test]
 fn a_gzipped_dump_reads_like_the_plain_one() {
     use std::io::Write as _;
     let dir = tempfile::tempdir().unwrap();

@@ -27,6 +27,24 @@ pub const CSV_COLUMNS: [&str; 9] = [
     "id", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s", "vz_m_s", "radius_m", "material",
 ];
 
+/// Opens a text file for reading line by line, gunzipping it when its name ends in `.gz`.
+///
+/// # Errors
+/// The I/O error, as text.
+pub fn open_text(path: &Path) -> Result<Box<dyn std::io::BufRead>, String> {
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
+    let gz = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+    Ok(if gz {
+        Box::new(std::io::BufReader::new(flate2::read::MultiGzDecoder::new(
+            std::io::BufReader::new(file),
+        )))
+    } else {
+        Box::new(std::io::BufReader::new(file))
+    })
+}
+
 /// Reads a whole text file, gunzipping it when its name ends in `.gz`.
 ///
 /// # Errors
@@ -180,77 +198,113 @@ pub struct DumpSnapshot {
     pub particles: Vec<ImportedParticle>,
 }
 
-/// Parses a LIGGGHTS/LAMMPS `dump custom` text file and returns the snapshot of `timestep`, or
-/// the last one. The `ITEM: ATOMS` header names the columns: `x y z` (or unwrapped `xu yu zu`)
-/// and `radius` (or `diameter`) are required, `id` and `vx vy vz` optional, other columns
-/// (type, forces, ...) ignored. Values are taken as they are: SI for LIGGGHTS' `units si`.
+/// Parses a LIGGGHTS/LAMMPS `dump custom` text and returns the snapshot of `timestep`, or the
+/// last one; see [`read_liggghts_dump`].
 ///
 /// # Errors
-/// A message naming the line of the first problem, or the timesteps the file has.
+/// As [`read_liggghts_dump`].
 pub fn parse_liggghts_dump(text: &str, timestep: Option<u64>) -> Result<DumpSnapshot, String> {
-    let lines: Vec<&str> = text.lines().collect();
-    // (timestep, index of its TIMESTEP line)
-    let mut snapshots: Vec<(u64, usize)> = Vec::new();
-    for (k, line) in lines.iter().enumerate() {
-        if line.trim_start().starts_with("ITEM: TIMESTEP") {
-            let value = lines.get(k + 1).map_or("", |l| l.trim());
-            let step = value
-                .parse()
-                .map_err(|_| format!("line {}: timestep \"{value}\" is not an integer", k + 2))?;
-            snapshots.push((step, k));
-        }
-    }
-    let &(step, start) = match timestep {
-        None => snapshots
-            .last()
-            .ok_or("no `ITEM: TIMESTEP` line: not a LAMMPS/LIGGGHTS dump file")?,
-        Some(t) => snapshots.iter().rev().find(|s| s.0 == t).ok_or_else(|| {
-            let have: Vec<u64> = snapshots.iter().map(|s| s.0).collect();
-            format!("no snapshot of timestep {t}; the file has timesteps {have:?}")
-        })?,
-    };
-    let mut k = start + 2;
-    let mut count: Option<usize> = None;
-    while k < lines.len() {
-        let line = lines[k].trim();
-        k += 1;
-        if line.starts_with("ITEM: NUMBER OF ATOMS") {
-            let value = lines.get(k).map_or("", |l| l.trim());
-            count = Some(value.parse().map_err(|_| {
-                format!(
-                    "line {}: number of atoms \"{value}\" is not an integer",
-                    k + 1
-                )
-            })?);
-        } else if let Some(columns) = line.strip_prefix("ITEM: ATOMS") {
-            let n = count.ok_or(format!(
-                "line {k}: `ITEM: ATOMS` before `ITEM: NUMBER OF ATOMS`"
-            ))?;
-            let particles = parse_dump_atoms(&lines, k, columns, n)?;
-            return Ok(DumpSnapshot {
-                timestep: step,
-                particles: sort_by_id(particles)?,
-            });
-        } else if line.starts_with("ITEM: TIMESTEP") {
-            break;
-        }
-    }
-    Err(format!(
-        "the snapshot of timestep {step} (line {}) has no `ITEM: ATOMS` section",
-        start + 1
-    ))
+    read_liggghts_dump(text.as_bytes(), timestep)
 }
 
-/// Rows `first..first + n` of `lines` under the `ITEM: ATOMS` header `columns`.
-fn parse_dump_atoms(
-    lines: &[&str],
-    first: usize,
+/// Reads a LIGGGHTS/LAMMPS `dump custom` file line by line and returns the snapshot of
+/// `timestep`, or the last one. The `ITEM: ATOMS` header names the columns: `x y z` (or
+/// unwrapped `xu yu zu`) and `radius` (or `diameter`) are required, `id` and `vx vy vz` optional,
+/// other columns (type, forces, ...) ignored. Values are taken as they are: SI for LIGGGHTS'
+/// `units si`. Only the rows of one snapshot are held at a time, never the file's text (a dump of
+/// 100k spheres is about 10 MB of text, more than the particles it describes).
+///
+/// # Errors
+/// A message naming the line of the first problem in the chosen snapshot, or the timesteps the
+/// file has.
+pub fn read_liggghts_dump(
+    reader: impl std::io::BufRead,
+    timestep: Option<u64>,
+) -> Result<DumpSnapshot, String> {
+    let mut lines = reader.lines().enumerate().map(|(k, line)| {
+        line.map(|l| (k + 1, l))
+            .map_err(|e| format!("line {}: cannot read: {e}", k + 1))
+    });
+    let mut next = || lines.next().transpose();
+    let mut timesteps: Vec<u64> = Vec::new();
+    // The snapshot taken so far (a later one of the wanted timestep replaces it), or why it failed.
+    let mut chosen: Option<Result<DumpSnapshot, String>> = None;
+    let mut pending = next()?;
+    while let Some((number, line)) = pending.take() {
+        if !line.trim_start().starts_with("ITEM: TIMESTEP") {
+            pending = next()?;
+            continue;
+        }
+        let value = next()?.map(|(_, l)| l).unwrap_or_default();
+        let step: u64 = value.trim().parse().map_err(|_| {
+            format!(
+                "line {}: timestep \"{}\" is not an integer",
+                number + 1,
+                value.trim()
+            )
+        })?;
+        timesteps.push(step);
+        let wanted = timestep.is_none_or(|t| t == step);
+        // The snapshot's items, up to the next TIMESTEP line (left in `pending`) or the end.
+        let mut count: Option<usize> = None;
+        let mut snapshot: Option<Result<DumpSnapshot, String>> = None;
+        while let Some((k, item)) = next()? {
+            let item_text = item.trim();
+            if item_text.starts_with("ITEM: TIMESTEP") {
+                pending = Some((k, item));
+                break;
+            }
+            if item_text.starts_with("ITEM: NUMBER OF ATOMS") {
+                let value = next()?.map(|(_, l)| l).unwrap_or_default();
+                count = Some(value.trim().parse().map_err(|_| {
+                    format!(
+                        "line {}: number of atoms \"{}\" is not an integer",
+                        k + 1,
+                        value.trim()
+                    )
+                })?);
+            } else if let Some(columns) = item_text.strip_prefix("ITEM: ATOMS") {
+                let n = count.ok_or(format!(
+                    "line {k}: `ITEM: ATOMS` before `ITEM: NUMBER OF ATOMS`"
+                ))?;
+                let columns = columns.to_string();
+                let rows = read_dump_atoms(&mut next, k, &columns, n, wanted);
+                snapshot = Some(rows.and_then(|rows| {
+                    Ok(DumpSnapshot {
+                        timestep: step,
+                        particles: sort_by_id(rows)?,
+                    })
+                }));
+            }
+        }
+        if wanted {
+            chosen = Some(snapshot.unwrap_or_else(|| {
+                Err(format!(
+                    "the snapshot of timestep {step} (line {number}) has no `ITEM: ATOMS` section"
+                ))
+            }));
+        }
+    }
+    match (chosen, timestep) {
+        (Some(snapshot), _) => snapshot,
+        (None, None) => Err("no `ITEM: TIMESTEP` line: not a LAMMPS/LIGGGHTS dump file".into()),
+        (None, Some(t)) => Err(format!(
+            "no snapshot of timestep {t}; the file has timesteps {timesteps:?}"
+        )),
+    }
+}
+
+/// The `n` rows under the `ITEM: ATOMS` header `columns` (on line `header`), read from `next`;
+/// parsed when `wanted`, otherwise only skipped.
+fn read_dump_atoms(
+    next: &mut impl FnMut() -> Result<Option<(usize, String)>, String>,
+    header: usize,
     columns: &str,
     n: usize,
+    wanted: bool,
 ) -> Result<Vec<ImportedParticle>, String> {
     let names: Vec<&str> = columns.split_whitespace().collect();
     let column = |name: &str| names.iter().position(|c| *c == name);
-    let header = first; // 1-based number of the header line
     let either = |a: &str, b: &str| column(a).or_else(|| column(b));
     let position = match [either("x", "xu"), either("y", "yu"), either("z", "zu")] {
         [Some(x), Some(y), Some(z)] => [x, y, z],
@@ -276,15 +330,16 @@ fn parse_dump_atoms(
     };
     let velocity = [column("vx"), column("vy"), column("vz")];
     let id = column("id");
-    if lines.len() < first + n {
-        return Err(format!(
-            "line {header}: {n} atoms announced, the file ends after {}",
-            lines.len() - first
-        ));
-    }
-    let mut rows = Vec::with_capacity(n);
-    for (offset, text) in lines[first..first + n].iter().enumerate() {
-        let line = first + offset + 1;
+    let mut rows = Vec::with_capacity(if wanted { n } else { 0 });
+    for read in 0..n {
+        let Some((line, text)) = next()? else {
+            return Err(format!(
+                "line {header}: {n} atoms announced, the file ends after {read}"
+            ));
+        };
+        if !wanted {
+            continue;
+        }
         let cells: Vec<&str> = text.split_whitespace().collect();
         if cells.len() != names.len() {
             return Err(format!(
