@@ -84,14 +84,27 @@ impl<T> HeldPairs<T> {
     /// its owner changed ends (a history oriented owner → partner then flips sign).
     #[must_use]
     pub fn find(&self, owner: u64, partner: u64) -> Option<(&T, bool)> {
+        let (e, turned) = self.position(owner, partner)?;
+        Some((&self.entries[e].1, turned))
+    }
+
+    /// Where [`Self::find`] finds the pair: its entry number (for [`Self::value`]) and whether
+    /// its owner changed ends.
+    #[must_use]
+    pub fn position(&self, owner: u64, partner: u64) -> Option<(usize, bool)> {
         let key = (owner.min(partner), owner.max(partner));
         let e = self
             .entries
             .binary_search_by(|((lo, hi), _)| (*lo, hi & !OWNER_WAS_LOWER).cmp(&key))
             .ok()?;
-        let ((_, hi), value) = &self.entries[e];
-        let owner_was_lower = hi & OWNER_WAS_LOWER != 0;
-        Some((value, owner_was_lower != (owner < partner)))
+        let owner_was_lower = self.entries[e].0.1 & OWNER_WAS_LOWER != 0;
+        Some((e, owner_was_lower != (owner < partner)))
+    }
+
+    /// The value of entry `e`.
+    #[must_use]
+    pub fn value(&self, e: usize) -> &T {
+        &self.entries[e].1
     }
 
     /// True when no pair is held.
@@ -265,14 +278,15 @@ impl NeighborList {
         self.slab_of = Vec::new();
         let n = positions.len();
         let grid = Grid::new(positions, radii, self.skin, self.periodic.as_ref());
-        let cells: Vec<[i64; 3]> = positions.par_iter().map(|x| grid.cell_of(*x)).collect();
-        // Particle indices by cell (slab-major, as `spatial_order` stores them, so that after a
-        // rebuild's reordering this sort meets sorted input). Indices only: a copy of each cell
-        // beside its index would add 32 bytes per particle to the rebuild's peak memory.
+        // Cells are recomputed where needed rather than stored (24 bytes per particle less at
+        // the rebuild's peak). Particle indices by cell, slab-major: after a rebuild's
+        // reordering (`spatial_order`) the particles already are in this order, and no sort runs.
+        let cell_key = |k: u32| grid.key(grid.cell_of(positions[k as usize]));
         let mut order: Vec<u32> =
             (0..u32::try_from(n).expect("fewer than 2^32 particles")).collect();
-        order.par_sort_unstable_by_key(|&k| (grid.key(cells[k as usize]), k));
-        let cell_key = |k: u32| grid.key(cells[k as usize]);
+        if !order.is_sorted_by_key(|&k| cell_key(k)) {
+            order.par_sort_unstable_by_key(|&k| (cell_key(k), k));
+        }
         // Distinct cells (by key) with the start of their run in `order`, at exact size.
         let distinct = 1 + order
             .windows(2)
@@ -280,11 +294,9 @@ impl NeighborList {
             .count();
         let mut runs: Vec<([i64; 3], u32)> = Vec::with_capacity(distinct);
         for (i, &k) in order.iter().enumerate() {
-            if runs.last().is_none_or(|(last, _)| *last != cell_key(k)) {
-                runs.push((
-                    cell_key(k),
-                    u32::try_from(i).expect("fewer than 2^32 particles"),
-                ));
+            let key = cell_key(k);
+            if runs.last().is_none_or(|(last, _)| *last != key) {
+                runs.push((key, u32::try_from(i).expect("fewer than 2^32 particles")));
             }
         }
         let members = |c: [i64; 3]| -> &[u32] {
@@ -299,7 +311,7 @@ impl NeighborList {
             }
         };
 
-        let (slab_of, slab_count) = slabs(&grid, &cells);
+        let (slab_of, slab_count) = slabs(&grid, positions);
         let wrapping = grid.wraps();
         let owns = |i: usize, j: usize| -> bool {
             let (si, sj) = (slab_of[i], slab_of[j]);
@@ -315,7 +327,7 @@ impl NeighborList {
         let skin = self.skin;
         let partners_of = |i: usize, found: &mut Vec<u32>| {
             let start = found.len();
-            let c = cells[i];
+            let c = grid.cell_of(positions[i]);
             for dz in -1..=1 {
                 for dy in -1..=1 {
                     for dx in -1..=1 {
@@ -556,8 +568,9 @@ impl NeighborList {
 /// layer (with an odd count of five or more, the last slab two layers); otherwise the occupied layers are numbered in order (empty layers dropped, so that a
 /// stray particle far away costs no memory), which keeps "successor" meaning "the next occupied
 /// layer", the only one besides its own that an owner's partners can lie in.
-fn slabs(grid: &Grid, cells: &[[i64; 3]]) -> (Vec<u32>, u32) {
+fn slabs(grid: &Grid, positions: &[DVec3]) -> (Vec<u32>, u32) {
     let axis = grid.slab_axis;
+    let layer_of = |x: &DVec3| grid.cell_of(*x)[axis];
     let slab = |s: i64| u32::try_from(s).expect("fewer than 2^32 slabs");
     if let Some(count) = grid.axes[axis].2 {
         // An odd count of five or more: the last two layers form one slab, so that the slabs
@@ -568,17 +581,20 @@ fn slabs(grid: &Grid, cells: &[[i64; 3]]) -> (Vec<u32>, u32) {
             count - 1
         };
         return (
-            cells.iter().map(|c| slab(c[axis].min(last))).collect(),
+            positions
+                .iter()
+                .map(|x| slab(layer_of(x).min(last)))
+                .collect(),
             slab(last + 1),
         );
     }
-    let mut layers: Vec<i64> = cells.iter().map(|c| c[axis]).collect();
+    let mut layers: Vec<i64> = positions.iter().map(layer_of).collect();
     layers.sort_unstable();
     layers.dedup();
     let rank = |layer: i64| -> u32 {
         u32::try_from(layers.binary_search(&layer).unwrap_or(0)).expect("fewer than 2^32 slabs")
     };
-    let slab_of = cells.iter().map(|c| rank(c[axis])).collect();
+    let slab_of = positions.iter().map(|x| rank(layer_of(x))).collect();
     (
         slab_of,
         u32::try_from(layers.len()).expect("fewer than 2^32 slabs"),

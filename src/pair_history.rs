@@ -99,9 +99,10 @@ impl TangentialHistories {
             return histories;
         }
         let partners = list.partners();
-        // Per slab: the slots that carry a history, found in parallel; then each pool is
-        // allocated at its exact size.
-        let found: Vec<Vec<(u32, PairTangential)>> = (0..list.slab_count())
+        // Per slab: the slots that carry a history and their held entries (8 bytes each, not
+        // the 40 of a copied spring: this is the rebuild's peak), found in parallel; then each
+        // pool is allocated at its exact size and filled in slot order.
+        let found: Vec<Vec<(u32, u32, bool)>> = (0..list.slab_count())
             .into_par_iter()
             .map(|s| {
                 let mut slots = Vec::new();
@@ -109,21 +110,23 @@ impl TangentialHistories {
                     let k = k as usize;
                     for p in list.slots(k) {
                         let partner = ids[partners[p] as usize];
-                        if let Some((v, turned)) = held.find(ids[k], partner) {
-                            let spring = value(v, turned);
-                            if spring != PairTangential::default() {
-                                slots.push((p as u32, spring));
-                            }
+                        if let Some((e, turned)) = held.position(ids[k], partner) {
+                            let e = u32::try_from(e).expect("fewer than 2^32 held pairs");
+                            slots.push((p as u32, e, turned));
                         }
                     }
                 }
+                slots.shrink_to_fit();
                 slots
             })
             .collect();
         for (pool, slots) in histories.pools.iter_mut().zip(found) {
             pool.springs.reserve_exact(slots.len());
-            for (p, spring) in slots {
-                histories.entry[p as usize] = Pool::append(&mut pool.springs, spring);
+            for (p, e, turned) in slots {
+                let spring = value(held.value(e as usize), turned);
+                if spring != PairTangential::default() {
+                    histories.entry[p as usize] = Pool::append(&mut pool.springs, spring);
+                }
             }
         }
         histories
