@@ -26,20 +26,20 @@ pub const MAX_RAYLEIGH_FRACTION: f64 = 0.2;
 pub struct PairRow {
     /// Material names.
     pub materials: (String, String),
-    /// Radii of the two spheres [m] (a wall has radius ∞).
+    /// Radii of the two spheres \[m\] (a wall has radius ∞).
     pub radii: (f64, f64),
-    /// E* [Pa].
+    /// E* \[Pa\].
     pub effective_modulus: f64,
-    /// r* [m].
+    /// r* \[m\].
     pub effective_radius: f64,
-    /// m* [kg].
+    /// m* \[kg\].
     pub effective_mass: f64,
-    /// Hertz contact time at the expected impact speed [s].
+    /// Hertz contact time at the expected impact speed \[s\].
     pub contact_time: f64,
     /// Largest stable dt (M.70) of the contact at the largest overlap of the expected impact,
-    /// and of the bond at δ_eq and at that overlap [s].
+    /// and of the bond at δ_eq and at that overlap \[s\].
     pub stability_limit: f64,
-    /// Relaxation time of the contact's damper at that overlap, `m*/c = 1/(2ξω)` [s] (∞ for
+    /// Relaxation time of the contact's damper at that overlap, `m*/c = 1/(2ξω)` \[s\] (∞ for
     /// ξ = 0): the fastest time scale of a heavily damped contact.
     pub damping_time: f64,
     /// Bond quantities, when the scene has a bond.
@@ -51,22 +51,22 @@ pub struct PairRow {
 pub struct BondRow {
     /// k_adh [N·m^-α].
     pub adhesion_stiffness: f64,
-    /// δ_eq [m].
+    /// δ_eq \[m\].
     pub equilibrium_overlap: f64,
-    /// δ_crit [m].
+    /// δ_crit \[m\].
     pub critical_overlap: f64,
     /// v_crit [m/s].
     pub critical_velocity: f64,
-    /// Bond strength (largest attraction) [N].
+    /// Bond strength (largest attraction) \[N\].
     pub strength: f64,
-    /// Period of small oscillations about δ_eq [s].
+    /// Period of small oscillations about δ_eq \[s\].
     pub oscillation_period: f64,
 }
 
 /// Everything `check` prints.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CheckReport {
-    /// Time step [s].
+    /// Time step \[s\].
     pub dt: f64,
     /// Steps of the run.
     pub steps: u64,
@@ -76,13 +76,13 @@ pub struct CheckReport {
     pub impact_speed: (f64, &'static str),
     /// Per-pair rows.
     pub pairs: Vec<PairRow>,
-    /// Smallest Rayleigh time over materials and radii [s].
+    /// Smallest Rayleigh time over materials and radii \[s\].
     pub rayleigh_time: f64,
     /// Largest initial overlap relative to the smaller radius.
     pub initial_overlap_ratio: f64,
-    /// Recommended dt [s].
+    /// Recommended dt \[s\].
     pub recommended_dt: f64,
-    /// The stability limit of the scene (M.70) [s] and what sets it: the smallest over the pair
+    /// The stability limit of the scene (M.70) \[s\] and what sets it: the smallest over the pair
     /// rows and over the contacts of the initial state.
     pub stability_limit: (f64, String),
     /// Warnings (empty when dt is fine).
@@ -101,7 +101,7 @@ pub struct FrictionCheck {
     /// Sticking tangential oscillation time relative to the Hertz contact time,
     /// `√(2/7 · k_n/k_t)` at the largest stiffness ratio.
     pub time_factor: f64,
-    /// Shortest Hertz contact time times `time_factor` [s].
+    /// Shortest Hertz contact time times `time_factor` \[s\].
     pub tangential_time: f64,
 }
 
@@ -209,11 +209,11 @@ pub fn expected_impact_speed(model: &Model, particles: &Particles) -> (f64, &'st
 /// Thermal part of the report.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ThermalCheck {
-    /// Smallest thermal time constant `min C_i/G_i` at t = 0 [s] (M.49).
+    /// Smallest thermal time constant `min C_i/G_i` at t = 0 \[s\] (M.49).
     pub time_constant: f64,
     /// Substeps per mechanical step this gives (M.49).
     pub substeps: f64,
-    /// Laser ray-casting cell [m] and the smallest radius [m], with a laser.
+    /// Laser ray-casting cell \[m\] and the smallest radius \[m\], with a laser.
     pub raster: Option<(f64, f64)>,
 }
 

@@ -24,7 +24,7 @@ use crate::periodic::Periodic;
 use crate::scatter::{self, PerParticle, PerSlot, Scatter, Window};
 use crate::thermal::{self, ThermalModel};
 
-/// `x_b − x_a` [m], as its minimum image across periodic axes (M.77).
+/// `x_b − x_a` \[m\], as its minimum image across periodic axes (M.77).
 #[inline]
 #[must_use]
 pub fn pair_separation(
@@ -75,17 +75,17 @@ pub struct PassHeat<'a> {
     pub model: &'a ThermalModel,
     /// Latched melting flags (the bond criterion reads them).
     pub melted: &'a [bool],
-    /// Temperatures at the start of the step [K].
+    /// Temperatures at the start of the step \[K\].
     pub temperature: &'a [f64],
-    /// Absorbed laser power [W].
+    /// Absorbed laser power \[W\].
     pub laser_power: &'a [f64],
     /// Heat capacities [J/K].
     pub heat_capacity: &'a [f64],
     /// Out, per pair slot: the contact conductance [W/K].
     pub conductance: &'a mut [f64],
-    /// Out: net heat flow [W].
+    /// Out: net heat flow \[W\].
     pub heat_flow: &'a mut [f64],
-    /// Out: heat flow from walls, gas and surroundings [W].
+    /// Out: heat flow from walls, gas and surroundings \[W\].
     pub boundary_flow: &'a mut [f64],
     /// Out: total conductance G_i [W/K].
     pub total_conductance: &'a mut [f64],
@@ -111,7 +111,7 @@ struct TangentialContact {
     relative_angular_velocity: DVec3,
     /// `1/I_first + 1/I_second` [1/(kg·m²)].
     inverse_inertia_sum: f64,
-    /// Total and elastic normal force [N], positive when repulsive.
+    /// Total and elastic normal force \[N\], positive when repulsive.
     normal_force: f64,
     elastic_normal_force: f64,
     /// A bonded neck sticks: no Coulomb limit (docs/model.md section 27.5).
@@ -121,13 +121,13 @@ struct TangentialContact {
 /// What one contact's tangential and rolling laws give over one step.
 #[derive(Debug, Clone, Copy)]
 struct TangentialStep {
-    /// Tangential force on the first body [N].
+    /// Tangential force on the first body \[N\].
     force: DVec3,
     /// Rolling torque on the first body [N·m] (the second gets the opposite).
     rolling_torque: DVec3,
     history: DVec3,
     spring_energy: f64,
-    /// Energy lost over the step [J] (M.63).
+    /// Energy lost over the step \[J\] (M.63).
     lost: f64,
 }
 
@@ -625,7 +625,7 @@ fn particle_pass(
     particles.dissipated = dissipated;
     summary
 }
-/// Overlap of particle `k` with wall `w` [m] (positive in contact) and the wall's normal.
+/// Overlap of particle `k` with wall `w` \[m\] (positive in contact) and the wall's normal.
 #[inline]
 #[must_use]
 pub fn wall_overlap(model: &Model, particles: &Particles, k: usize, w: usize) -> f64 {

@@ -116,7 +116,7 @@ pub fn first_non_finite(particles: &Particles) -> Option<(usize, &'static str)> 
 }
 
 /// Largest stable time step of this integrator for a contact of stiffness `k` [N/m] between
-/// bodies of effective mass `m*` [kg] with damping ratio `ξ` (damping `2ξ√(m* k)`, eq. 26)
+/// bodies of effective mass `m*` \[kg\] with damping ratio `ξ` (damping `2ξ√(m* k)`, eq. 26)
 /// (M.70, derived in docs/stability.md):
 ///
 /// ```text

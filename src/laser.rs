@@ -25,13 +25,13 @@ use crate::particles::Particles;
 /// One straight piece of the scan path, travelled at constant speed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Segment {
-    /// Start point (x, y) [m].
+    /// Start point (x, y) \[m\].
     pub from: DVec2,
-    /// End point (x, y) [m].
+    /// End point (x, y) \[m\].
     pub to: DVec2,
-    /// Time at which the beam is at `from` [s].
+    /// Time at which the beam is at `from` \[s\].
     pub start: f64,
-    /// Time to travel the segment [s].
+    /// Time to travel the segment \[s\].
     pub duration: f64,
     /// Whether the laser is on along it (false for jumps between hatch tracks).
     pub on: bool,
@@ -40,18 +40,18 @@ pub struct Segment {
 /// The laser: power, spot and path.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Laser {
-    /// Beam power P [W].
+    /// Beam power P \[W\].
     pub power: f64,
-    /// 1/e² radius w [m].
+    /// 1/e² radius w \[m\].
     pub spot_radius: f64,
-    /// Raster cell side h [m].
+    /// Raster cell side h \[m\].
     pub raster_cell: f64,
     /// The scan path, in time order.
     pub path: Vec<Segment>,
 }
 
 impl Laser {
-    /// Beam axis position at time `t` [s], or `None` when the laser is off.
+    /// Beam axis position at time `t` \[s\], or `None` when the laser is off.
     #[must_use]
     pub fn beam_at(&self, t: f64) -> Option<DVec2> {
         let segment = self
@@ -69,7 +69,7 @@ impl Laser {
         Some(segment.from.lerp(segment.to, fraction))
     }
 
-    /// Time at which the path ends [s].
+    /// Time at which the path ends \[s\].
     #[must_use]
     pub fn end_time(&self) -> f64 {
         self.path.last().map_or(0.0, |s| s.start + s.duration)
@@ -82,7 +82,7 @@ impl Laser {
         0.5 * (libm::erf(s * (hi - centre)) - libm::erf(s * (lo - centre)))
     }
 
-    /// Laser power absorbed by every particle with the beam axis at `beam` (M.51) [W], written
+    /// Laser power absorbed by every particle with the beam axis at `beam` (M.51) \[W\], written
     /// into `power` (zeroed first). `absorptivity(k)` is particle k's absorptivity. Returns the
     /// particles inside the beam window (the only ones whose motion can change the result).
     pub fn absorb(
@@ -324,7 +324,7 @@ pub fn scaled_bessel_i0(x: f64) -> f64 {
 pub struct Snapshot {
     /// Beam axis at the last cast (`None`: laser off).
     pub beam: Option<DVec2>,
-    /// Lit particles (index) and their positions at the last cast [m].
+    /// Lit particles (index) and their positions at the last cast \[m\].
     pub lit: Vec<(usize, DVec3)>,
 }
 
@@ -382,7 +382,7 @@ impl Snapshot {
     }
 }
 
-/// Builds the segments of a polyline path through `points` at `speed` [m/s], from `start` [s].
+/// Builds the segments of a polyline path through `points` at `speed` [m/s], from `start` \[s\].
 #[must_use]
 pub fn polyline(points: &[DVec2], speed: f64, start: f64) -> Vec<Segment> {
     let mut t = start;
@@ -406,11 +406,11 @@ pub fn polyline(points: &[DVec2], speed: f64, start: f64) -> Vec<Segment> {
 /// A hatch pattern (M.52): parallel tracks in alternating directions (a meander).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hatch {
-    /// Start of the first track (x, y) [m].
+    /// Start of the first track (x, y) \[m\].
     pub origin: DVec2,
-    /// Track length [m].
+    /// Track length \[m\].
     pub length: f64,
-    /// Distance between tracks [m].
+    /// Distance between tracks \[m\].
     pub spacing: f64,
     /// Number of tracks.
     pub tracks: u32,
@@ -418,12 +418,12 @@ pub struct Hatch {
     pub along_x: bool,
     /// Scan speed [m/s].
     pub speed: f64,
-    /// Time with the laser off to reach the next track [s].
+    /// Time with the laser off to reach the next track \[s\].
     pub jump_time: f64,
 }
 
 impl Hatch {
-    /// The segments of the pattern, starting at time `start` [s].
+    /// The segments of the pattern, starting at time `start` \[s\].
     #[must_use]
     pub fn segments(&self, start: f64) -> Vec<Segment> {
         let (along, across) = if self.along_x {

@@ -26,7 +26,7 @@ pub struct Material {
     pub name: String,
     /// Density [kg/m³].
     pub density: f64,
-    /// Young's modulus [Pa].
+    /// Young's modulus \[Pa\].
     pub youngs_modulus: f64,
     /// Poisson ratio.
     pub poisson_ratio: f64,
@@ -35,7 +35,7 @@ pub struct Material {
 /// An infinite plane wall.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Wall {
-    /// A point of the plane [m].
+    /// A point of the plane \[m\].
     pub point: DVec3,
     /// Unit normal, pointing into the domain.
     pub normal: DVec3,
@@ -135,9 +135,9 @@ impl OutputSettings {
 /// axis is removed at the next neighbour-list build.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Domain {
-    /// Lower corner [m].
+    /// Lower corner \[m\].
     pub lower: DVec3,
-    /// Upper corner [m].
+    /// Upper corner \[m\].
     pub upper: DVec3,
     /// Axes along which the domain is periodic (the bounds do not apply there).
     pub periodic: [bool; 3],
@@ -238,13 +238,13 @@ impl Friction {
 pub struct Model {
     /// Scene title.
     pub title: String,
-    /// Time step [s].
+    /// Time step \[s\].
     pub dt: f64,
     /// Number of steps of the run.
     pub steps: u64,
     /// Gravitational acceleration [m/s²].
     pub gravity: DVec3,
-    /// Verlet skin [m].
+    /// Verlet skin \[m\].
     pub skin: f64,
     /// Materials, indexed by `Particles::material`.
     pub materials: Vec<Material>,

@@ -124,7 +124,7 @@ impl<T> Default for HeldPairs<T> {
 
 /// The cell grid of one build.
 struct Grid {
-    /// Per axis: where cell 0 starts [m], the cell edge [m], and on a periodic axis the number of
+    /// Per axis: where cell 0 starts \[m\], the cell edge \[m\], and on a periodic axis the number of
     /// cells across the period (≥ 3, checked when the model is built), so neighbour cells wrap.
     axes: [(f64, f64, Option<i64>); 3],
     /// The axis across which the cell layers form slabs (the longest extent).
@@ -208,7 +208,7 @@ impl Grid {
 }
 
 impl NeighborList {
-    /// An empty list with the given skin [m], over a domain periodic along `periodic`'s axes.
+    /// An empty list with the given skin \[m\], over a domain periodic along `periodic`'s axes.
     #[must_use]
     pub fn new(skin: f64, periodic: Option<Periodic>) -> Self {
         Self {
@@ -236,7 +236,7 @@ impl NeighborList {
         }
     }
 
-    /// The positions of the last build [m] (a restart saves them, so that a resumed run builds
+    /// The positions of the last build \[m\] (a restart saves them, so that a resumed run builds
     /// the same list and sums in the same order).
     #[must_use]
     pub fn reference_positions(&self) -> &[DVec3] {

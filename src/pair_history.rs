@@ -24,11 +24,11 @@ pub const NO_ENTRY: u32 = u32::MAX;
 /// The tangential spring of one pair in contact.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PairTangential {
-    /// Tangential displacement ξ [m] of the owner relative to the partner, world frame, turned
+    /// Tangential displacement ξ \[m\] of the owner relative to the partner, world frame, turned
     /// into the current tangent plane at each use (M.58). It changes sign when the pair's owner
     /// changes ends at a rebuild.
     pub history: DVec3,
-    /// Spring energy `½ k_t |ξ|²` at the last evaluation [J] (M.63).
+    /// Spring energy `½ k_t |ξ|²` at the last evaluation \[J\] (M.63).
     pub spring_energy: f64,
 }
 
@@ -166,7 +166,7 @@ impl TangentialHistories {
         }
     }
 
-    /// Energy stored in all pair springs [J] (M.63).
+    /// Energy stored in all pair springs \[J\] (M.63).
     #[must_use]
     pub fn spring_energy(&self) -> f64 {
         self.pools

@@ -7,11 +7,11 @@ use glam::DVec3;
 /// Everything needed to add one particle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ParticleInit {
-    /// Centre [m].
+    /// Centre \[m\].
     pub position: DVec3,
     /// Velocity [m/s].
     pub velocity: DVec3,
-    /// Radius [m].
+    /// Radius \[m\].
     pub radius: f64,
     /// Index into `Model::materials`.
     pub material: u16,
@@ -24,18 +24,18 @@ pub struct Particles {
     pub id: Vec<u64>,
     /// Index into `Model::materials`.
     pub material: Vec<u16>,
-    /// Radius [m].
+    /// Radius \[m\].
     pub radius: Vec<f64>,
-    /// Mass [kg].
+    /// Mass \[kg\].
     pub mass: Vec<f64>,
-    /// Centre [m].
+    /// Centre \[m\].
     pub position: Vec<DVec3>,
     /// Velocity [m/s].
     pub velocity: Vec<DVec3>,
-    /// Total force at the current positions [N].
+    /// Total force at the current positions \[N\].
     pub force: Vec<DVec3>,
     /// Mechanical energy lost so far by the particle's contacts (damping, bond formation; half of
-    /// each pair's share) [J] (M.35). Per particle, so the gather writes only its own slot.
+    /// each pair's share) \[J\] (M.35). Per particle, so the gather writes only its own slot.
     pub dissipated: Vec<f64>,
 }
 
@@ -81,7 +81,7 @@ impl Particles {
         .all(|&len| len == n)
     }
 
-    /// Total kinetic energy `Σ ½ m v²` [J] (summed in index order: reproducible).
+    /// Total kinetic energy `Σ ½ m v²` \[J\] (summed in index order: reproducible).
     #[must_use]
     pub fn kinetic_energy(&self) -> f64 {
         self.mass
@@ -91,13 +91,13 @@ impl Particles {
             .sum()
     }
 
-    /// Mechanical energy lost so far by damping and bond formation [J] (M.35), summed in index order.
+    /// Mechanical energy lost so far by damping and bond formation \[J\] (M.35), summed in index order.
     #[must_use]
     pub fn dissipated_energy(&self) -> f64 {
         self.dissipated.iter().sum()
     }
 
-    /// Gravitational potential energy `−Σ m g·x` [J] (zero at the origin).
+    /// Gravitational potential energy `−Σ m g·x` \[J\] (zero at the origin).
     #[must_use]
     pub fn gravitational_energy(&self, gravity: DVec3) -> f64 {
         // `+ 0.0` turns the −0.0 of a zero gravity into 0.0 for printing.
@@ -113,9 +113,9 @@ impl Particles {
 /// Tangential contact history of one particle against one wall (M.58, M.63).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct WallTangential {
-    /// Tangential displacement ξ [m], world frame, particle relative to the wall.
+    /// Tangential displacement ξ \[m\], world frame, particle relative to the wall.
     pub history: DVec3,
-    /// Spring energy `½ k_t |ξ|²` at the last evaluation [J] (M.63).
+    /// Spring energy `½ k_t |ξ|²` at the last evaluation \[J\] (M.63).
     pub spring_energy: f64,
 }
 
@@ -153,7 +153,7 @@ impl Rotation {
         self.walls.max(1)
     }
 
-    /// Rotational kinetic energy `Σ ½ I ω²`, `I = (2/5) m r²` [J] (M.62), in index order.
+    /// Rotational kinetic energy `Σ ½ I ω²`, `I = (2/5) m r²` \[J\] (M.62), in index order.
     #[must_use]
     pub fn kinetic_energy(&self, particles: &Particles) -> f64 {
         self.angular_velocity
@@ -165,7 +165,7 @@ impl Rotation {
             .sum()
     }
 
-    /// Stored energy of the wall springs [J] (M.63), in index order.
+    /// Stored energy of the wall springs \[J\] (M.63), in index order.
     #[must_use]
     pub fn wall_spring_energy(&self) -> f64 {
         self.wall_contacts.iter().map(|c| c.spring_energy).sum()

@@ -16,14 +16,14 @@ use glam::DVec3;
 /// The periodic axes of the domain and their extent.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Periodic {
-    /// Lower bound on each periodic axis [m] (unused on the others).
+    /// Lower bound on each periodic axis \[m\] (unused on the others).
     pub lower: DVec3,
-    /// Period L on each periodic axis [m]; `None` where the axis is not periodic.
+    /// Period L on each periodic axis \[m\]; `None` where the axis is not periodic.
     pub length: [Option<f64>; 3],
 }
 
 impl Periodic {
-    /// The minimum image of a separation vector (M.77) [m].
+    /// The minimum image of a separation vector (M.77) \[m\].
     ///
     /// Positions are wrapped at every neighbour-list build and move less than half the skin
     /// between builds, so a separation is within (−3L/2, 3L/2) and one shift by L suffices: two
@@ -50,7 +50,7 @@ impl Periodic {
         DVec3::from_array(d)
     }
 
-    /// `x` moved back into the box along the periodic axes (M.77) [m].
+    /// `x` moved back into the box along the periodic axes (M.77) \[m\].
     #[inline]
     #[must_use]
     pub fn wrap(&self, position: DVec3) -> DVec3 {

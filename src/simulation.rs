@@ -53,12 +53,12 @@ pub struct Simulation {
     tangential: TangentialHistories,
     /// Steps taken.
     pub step: u64,
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub time: f64,
 }
 
 /// What has left the domain (M.78): how many particles, and the energies they took with them,
-/// so that the run's balances still close [J].
+/// so that the run's balances still close \[J\].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Removed {
     /// Particles removed.
@@ -75,7 +75,7 @@ pub struct Removed {
     pub boundary_energy: f64,
 }
 
-/// Energies at the start of a run (t = 0, or the step a resumed run starts from) [J].
+/// Energies at the start of a run (t = 0, or the step a resumed run starts from) \[J\].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct StartEnergies {
     kinetic: f64,
@@ -102,9 +102,9 @@ pub struct GuardTrip {
 pub struct RestartState {
     /// Steps taken.
     pub step: u64,
-    /// Forces of the last step [N].
+    /// Forces of the last step \[N\].
     pub force: Vec<glam::DVec3>,
-    /// Mechanical energy lost so far, per particle [J] (M.35).
+    /// Mechanical energy lost so far, per particle \[J\] (M.35).
     pub dissipated: Vec<f64>,
     /// Bonded pairs as (id_lo, id_hi).
     pub bonded: Vec<(u64, u64)>,
@@ -116,7 +116,7 @@ pub struct RestartState {
     pub rotation: Option<RotationRestart>,
     /// What has left the domain so far (M.78).
     pub removed: Removed,
-    /// Positions of the neighbour list's last build [m] (empty in files written before they were
+    /// Positions of the neighbour list's last build \[m\] (empty in files written before they were
     /// saved): a resumed run builds the same list from them.
     pub neighbor_reference: Vec<glam::DVec3>,
 }
@@ -128,30 +128,30 @@ pub struct RotationRestart {
     pub angular_velocity: Vec<glam::DVec3>,
     /// Torques of the last step [N·m].
     pub torque: Vec<glam::DVec3>,
-    /// Wall histories [m], `[k * max(walls, 1) + w]`.
+    /// Wall histories \[m\], `[k * max(walls, 1) + w]`.
     pub wall_history: Vec<glam::DVec3>,
-    /// Wall spring energies [J], indexed like `wall_history`.
+    /// Wall spring energies \[J\], indexed like `wall_history`.
     pub wall_spring_energy: Vec<f64>,
     /// Pairs with a tangential history, as (id_lo, id_hi).
     pub pair_ids: Vec<(u64, u64)>,
-    /// Their histories [m] (first → second particle of the key, world frame).
+    /// Their histories \[m\] (first → second particle of the key, world frame).
     pub pair_history: Vec<glam::DVec3>,
-    /// Their spring energies [J].
+    /// Their spring energies \[J\].
     pub pair_spring_energy: Vec<f64>,
 }
 
 /// Thermal part of [`RestartState`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ThermalRestart {
-    /// Enthalpy [J].
+    /// Enthalpy \[J\].
     pub enthalpy: Vec<f64>,
     /// Latched melting flags.
     pub melted: Vec<bool>,
-    /// Laser power of the last cast [W].
+    /// Laser power of the last cast \[W\].
     pub laser_power: Vec<f64>,
-    /// Laser energy absorbed so far, per particle [J].
+    /// Laser energy absorbed so far, per particle \[J\].
     pub laser_energy: Vec<f64>,
-    /// Boundary heat so far, per particle [J].
+    /// Boundary heat so far, per particle \[J\].
     pub boundary_energy: Vec<f64>,
     /// Most substeps in one step so far.
     pub max_substeps: u32,
@@ -162,15 +162,15 @@ pub struct ThermalRestart {
 pub struct Diagnostics {
     /// Steps taken.
     pub step: u64,
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub time: f64,
-    /// `Σ ½ m v²` [J].
+    /// `Σ ½ m v²` \[J\].
     pub kinetic_energy: f64,
-    /// `−Σ m g·x` [J].
+    /// `−Σ m g·x` \[J\].
     pub gravitational_energy: f64,
-    /// Elastic energy stored in contacts and bonds (M.6, M.15) [J].
+    /// Elastic energy stored in contacts and bonds (M.6, M.15) \[J\].
     pub elastic_energy: f64,
-    /// Mechanical energy lost so far by damping and bond formation [J] (M.35).
+    /// Mechanical energy lost so far by damping and bond formation \[J\] (M.35).
     pub dissipated_energy: f64,
     /// Particle–particle pairs with δ > 0.
     pub contacts: usize,
@@ -178,7 +178,7 @@ pub struct Diagnostics {
     pub wall_contacts: usize,
     /// Bonded pairs.
     pub bonds: usize,
-    /// Largest particle–particle or particle–wall overlap [m].
+    /// Largest particle–particle or particle–wall overlap \[m\].
     pub max_overlap: f64,
     /// Largest overlap relative to the smaller radius of its pair.
     pub max_overlap_ratio: f64,
@@ -206,13 +206,13 @@ struct Contact<'a> {
     second: Option<usize>,
     /// The wall, for a wall contact.
     wall: Option<usize>,
-    /// δ > 0 [m].
+    /// δ > 0 \[m\].
     overlap: f64,
-    /// The smaller radius of the two (the particle's, against a wall) [m].
+    /// The smaller radius of the two (the particle's, against a wall) \[m\].
     smaller_radius: f64,
-    /// r* [m].
+    /// r* \[m\].
     effective_radius: f64,
-    /// m* [kg].
+    /// m* \[kg\].
     effective_mass: f64,
     /// Normal-law parameters of the pair or of the particle against the wall.
     params: &'a NormalParams,
@@ -223,24 +223,24 @@ struct Contact<'a> {
 /// The contact that limits the time step most (M.70).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StabilityLimit {
-    /// Largest stable dt for that contact [s].
+    /// Largest stable dt for that contact \[s\].
     pub dt_max: f64,
     /// Its particle ids (the second is `None` for a wall).
     pub ids: (u64, Option<u64>),
-    /// Its overlap [m].
+    /// Its overlap \[m\].
     pub overlap: f64,
 }
 
 /// Thermal quantities of the current state.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ThermalDiagnostics {
-    /// `Σ E_i` [J] (M.48).
+    /// `Σ E_i` \[J\] (M.48).
     pub enthalpy: f64,
-    /// Laser energy absorbed since the start [J].
+    /// Laser energy absorbed since the start \[J\].
     pub laser_energy: f64,
-    /// Heat received from walls, gas and surroundings since the start [J].
+    /// Heat received from walls, gas and surroundings since the start \[J\].
     pub boundary_energy: f64,
-    /// Highest particle temperature [K].
+    /// Highest particle temperature \[K\].
     pub max_temperature: f64,
     /// Particles that have reached their melting point.
     pub melted: usize,
@@ -254,7 +254,7 @@ pub struct ThermalDiagnostics {
 }
 
 impl Diagnostics {
-    /// Kinetic + gravitational + elastic energy [J].
+    /// Kinetic + gravitational + elastic energy \[J\].
     #[must_use]
     pub fn mechanical_energy(&self) -> f64 {
         self.kinetic_energy + self.gravitational_energy + self.elastic_energy
@@ -592,7 +592,7 @@ impl Simulation {
         })
     }
 
-    /// Bonded pairs as (index a, index b, overlap [m], normal force [N], positive when
+    /// Bonded pairs as (index a, index b, overlap \[m\], normal force \[N\], positive when
     /// repulsive), the force from the bonded law at the current positions and velocities.
     #[must_use]
     pub fn bonded_pairs(&self) -> Vec<(usize, usize, f64, f64)> {
@@ -1122,7 +1122,7 @@ impl Simulation {
         }
     }
 
-    /// Smallest thermal time constant `min C_i/G_i` [s] at the current state (M.49), for scenes
+    /// Smallest thermal time constant `min C_i/G_i` \[s\] at the current state (M.49), for scenes
     /// with `[thermal]`; infinite when nothing exchanges heat.
     #[must_use]
     pub fn smallest_thermal_time_constant(&self) -> Option<f64> {

@@ -43,7 +43,7 @@ pub struct DepositionReport {
     pub settled: bool,
     /// Steps taken.
     pub steps: u64,
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub time: f64,
     /// Mean kinetic energy per particle over m̄ g d̄ at the last check (M.75).
     pub kinetic_energy_ratio: f64,
@@ -51,7 +51,7 @@ pub struct DepositionReport {
     pub stopped: Option<GuardTrip>,
 }
 
-/// `m̄ g d̄` [J]: mean mass × |gravity| × mean diameter (M.75).
+/// `m̄ g d̄` \[J\]: mean mass × |gravity| × mean diameter (M.75).
 #[must_use]
 pub fn reference_energy(particles: &Particles, gravity: f64) -> f64 {
     #[allow(clippy::cast_precision_loss)]

@@ -12,11 +12,11 @@ use glam::DVec3;
 pub struct ImportedParticle {
     /// The file's id, if it has one (rows are sorted by it).
     pub id: Option<u64>,
-    /// Centre [m].
+    /// Centre \[m\].
     pub position: DVec3,
     /// Velocity [m/s] (zero if the file has none).
     pub velocity: DVec3,
-    /// Radius [m].
+    /// Radius \[m\].
     pub radius: f64,
     /// Material name, if the file gives one (CSV `material` column).
     pub material: Option<String>,

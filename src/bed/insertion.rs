@@ -18,7 +18,7 @@ pub const ATTEMPTS_PER_SPHERE: u64 = 10_000;
 pub enum InsertionError {
     /// A sphere is wider than the box along an axis.
     TooLarge {
-        /// Its radius [m].
+        /// Its radius \[m\].
         radius: f64,
         /// The axis (0, 1, 2).
         axis: usize,

@@ -24,13 +24,13 @@ pub enum Shape {
 pub struct Psd {
     /// The family.
     pub shape: Shape,
-    /// Mean [m] (normal), ln of the median [ln m] (log-normal), or the diameter (constant).
+    /// Mean \[m\] (normal), ln of the median [ln m] (log-normal), or the diameter (constant).
     pub location: f64,
-    /// Standard deviation [m] (normal), σ of ln D [–] (log-normal); 0 for constant.
+    /// Standard deviation \[m\] (normal), σ of ln D [–] (log-normal); 0 for constant.
     pub scale: f64,
-    /// Smallest diameter kept [m] (≥ 0; diameters ≤ 0 are never kept).
+    /// Smallest diameter kept \[m\] (≥ 0; diameters ≤ 0 are never kept).
     pub min: f64,
-    /// Largest diameter kept [m] (may be +∞).
+    /// Largest diameter kept \[m\] (may be +∞).
     pub max: f64,
 }
 
@@ -41,7 +41,7 @@ pub fn standard_normal_cdf(x: f64) -> f64 {
 }
 
 impl Psd {
-    /// Every sphere has diameter `d` [m].
+    /// Every sphere has diameter `d` \[m\].
     #[must_use]
     pub fn constant(d: f64) -> Self {
         Self {
@@ -53,7 +53,7 @@ impl Psd {
         }
     }
 
-    /// Normal with mean `mean` and standard deviation `std` [m].
+    /// Normal with mean `mean` and standard deviation `std` \[m\].
     #[must_use]
     pub fn normal(mean: f64, std: f64) -> Self {
         Self {
@@ -65,7 +65,7 @@ impl Psd {
         }
     }
 
-    /// Log-normal whose diameters have arithmetic mean `mean` and standard deviation `std` [m]
+    /// Log-normal whose diameters have arithmetic mean `mean` and standard deviation `std` \[m\]
     /// (M.72): σ² = ln(1 + (std/mean)²), μ = ln(mean) − σ²/2.
     #[must_use]
     pub fn lognormal_from_moments(mean: f64, std: f64) -> Self {
@@ -79,7 +79,7 @@ impl Psd {
         }
     }
 
-    /// Fit to the quantiles D10 < D50 < D90 [m] (M.73): the median is D50 and the spread is the
+    /// Fit to the quantiles D10 < D50 < D90 \[m\] (M.73): the median is D50 and the spread is the
     /// least-squares fit of D10 and D90 about it, which with z = ±z₀.₉ has the closed form
     /// σ = (g(D90) − g(D10)) / (2 z₀.₉), with g = ln for the log-normal and g(D) = D for the normal.
     #[must_use]
@@ -97,13 +97,13 @@ impl Psd {
         }
     }
 
-    /// The same distribution truncated to `[min, max]` [m].
+    /// The same distribution truncated to `[min, max]` \[m\].
     #[must_use]
     pub fn truncated(self, min: f64, max: f64) -> Self {
         Self { min, max, ..self }
     }
 
-    /// CDF of the untruncated distribution at diameter `d` [m].
+    /// CDF of the untruncated distribution at diameter `d` \[m\].
     #[must_use]
     pub fn untruncated_cdf(&self, d: f64) -> f64 {
         match self.shape {
@@ -164,7 +164,7 @@ impl Psd {
         0.5 * (lo + hi)
     }
 
-    /// One diameter [m]. Draws outside `[min, max]` (or ≤ 0) are redrawn; scene validation
+    /// One diameter \[m\]. Draws outside `[min, max]` (or ≤ 0) are redrawn; scene validation
     /// requires [`Psd::kept_fraction`] ≥ 1e-3, so a draw needs fewer than 1000 tries on average.
     pub fn sample(&self, rng: &mut SplitMix64) -> f64 {
         loop {

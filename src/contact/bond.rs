@@ -32,7 +32,7 @@ pub struct BondParams {
 }
 
 impl BondParams {
-    /// Adhesion force magnitude (attractive) `k_adh δ^α_adh` [N], the second term of paper eq. 15 (M.12).
+    /// Adhesion force magnitude (attractive) `k_adh δ^α_adh` \[N\], the second term of paper eq. 15 (M.12).
     #[must_use]
     pub fn adhesion_force(&self, overlap: f64) -> f64 {
         if overlap <= 0.0 {
@@ -41,7 +41,7 @@ impl BondParams {
         self.adhesion_stiffness * overlap.powf(self.adhesion_exponent)
     }
 
-    /// Elastic force of the bonded branch, paper eq. 15 (M.12), positive when repulsive [N]:
+    /// Elastic force of the bonded branch, paper eq. 15 (M.12), positive when repulsive \[N\]:
     ///
     /// ```text
     /// F_el = (4/3) E* √r* δ^{3/2} − k_adh δ^α_adh
@@ -77,7 +77,7 @@ impl BondParams {
         hertz::stiffness(effective_modulus, effective_radius, overlap) - adhesion
     }
 
-    /// Energy stored in the bonded spring relative to δ = 0 [J] (M.15):
+    /// Energy stored in the bonded spring relative to δ = 0 \[J\] (M.15):
     /// `U = (8/15) E* √r* δ^{5/2} − k_adh δ^{α+1}/(α+1)`.
     #[must_use]
     pub fn elastic_energy(
@@ -94,7 +94,7 @@ impl BondParams {
             - self.adhesion_stiffness * overlap.powf(a) / a
     }
 
-    /// Equilibrium overlap, paper eq. 13 (M.16) [m]: where the bonded elastic force vanishes,
+    /// Equilibrium overlap, paper eq. 13 (M.16) \[m\]: where the bonded elastic force vanishes,
     ///
     /// ```text
     /// δ_eq = (k_adh / ((4/3) E* √r*))^{1/(3/2 − α_adh)}
@@ -105,7 +105,7 @@ impl BondParams {
             .powf(1.0 / (1.5 - self.adhesion_exponent))
     }
 
-    /// Critical overlap, paper eq. 14 (M.17) [m]: where `k* = 0`, the least overlap of a stable bond,
+    /// Critical overlap, paper eq. 14 (M.17) \[m\]: where `k* = 0`, the least overlap of a stable bond,
     ///
     /// ```text
     /// δ_crit = (α_adh k_adh / (2 E* √r*))^{1/(3/2 − α_adh)}
@@ -136,7 +136,7 @@ impl BondParams {
             .powf(1.0 / (1.5 - self.adhesion_exponent))
     }
 
-    /// `(k̄_con, k̄_adh)` of paper eq. 18 [N].
+    /// `(k̄_con, k̄_adh)` of paper eq. 18 \[N\].
     fn normalised_stiffnesses(&self, effective_modulus: f64, effective_radius: f64) -> (f64, f64) {
         (
             4.0 / 3.0 * effective_modulus * effective_radius * effective_radius,
@@ -166,7 +166,7 @@ impl BondParams {
         (hertz_term * self.critical_overlap(effective_modulus, effective_radius)).powf(1.25)
     }
 
-    /// Largest attractive force the bond carries [N] (its strength): `−F_el(δ_crit)`, reached at δ_crit
+    /// Largest attractive force the bond carries \[N\] (its strength): `−F_el(δ_crit)`, reached at δ_crit
     /// where `k* = 0`. Zero when there is no adhesion.
     #[must_use]
     pub fn strength(&self, effective_modulus: f64, effective_radius: f64) -> f64 {

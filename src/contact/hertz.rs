@@ -5,7 +5,7 @@
 //! in contact; a scalar normal force is **positive when repulsive**. SI units throughout.
 //! Equation numbers `(M.x)` refer to `docs/model.md`, `paper eq. N` to Quintana-Ruiz & Campello (2020).
 
-/// Effective radius of two spheres, paper eq. 12 (M.1): `r* = r_i r_j / (r_i + r_j)` [m].
+/// Effective radius of two spheres, paper eq. 12 (M.1): `r* = r_i r_j / (r_i + r_j)` \[m\].
 ///
 /// For a sphere against a plane use `r* = r_i` directly (the limit `r_j → ∞`).
 #[must_use]
@@ -13,7 +13,7 @@ pub fn effective_radius(radius_i: f64, radius_j: f64) -> f64 {
     radius_i * radius_j / (radius_i + radius_j)
 }
 
-/// Effective (reduced) mass, paper eq. 11 (M.2): `m* = m_i m_j / (m_i + m_j)` [kg].
+/// Effective (reduced) mass, paper eq. 11 (M.2): `m* = m_i m_j / (m_i + m_j)` \[kg\].
 ///
 /// For a sphere against a fixed plane use `m* = m_i` (the limit `m_j → ∞`).
 #[must_use]
@@ -58,7 +58,7 @@ pub fn stiffness(effective_modulus: f64, effective_radius: f64, overlap: f64) ->
     2.0 * effective_modulus * (effective_radius * overlap).sqrt()
 }
 
-/// Elastic energy stored in a Hertz contact (M.6): `U = (8/15) E* √r* δ^{5/2}` [J], the integral
+/// Elastic energy stored in a Hertz contact (M.6): `U = (8/15) E* √r* δ^{5/2}` \[J\], the integral
 /// of [`elastic_force`] over δ.
 #[must_use]
 pub fn elastic_energy(effective_modulus: f64, effective_radius: f64, overlap: f64) -> f64 {

@@ -20,7 +20,7 @@ pub use bond::BondParams;
 /// Per material pair parameters of the normal contact law (resolved once from the scene).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NormalParams {
-    /// Effective Young's modulus E* [Pa] (paper eq. 12).
+    /// Effective Young's modulus E* \[Pa\] (paper eq. 12).
     pub effective_modulus: f64,
     /// Contact damping ratio ξ_con of the Hertz branch (paper eq. 26), `≥ 0`.
     pub damping_ratio: f64,
@@ -32,7 +32,7 @@ pub struct NormalParams {
 /// for scenes with `contact.friction_coefficient` or `contact.rolling_friction_coefficient`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrictionParams {
-    /// Effective shear modulus G* [Pa] (M.56).
+    /// Effective shear modulus G* \[Pa\] (M.56).
     pub effective_shear_modulus: f64,
     /// Sliding friction coefficient μ [–] (Coulomb limit, M.59); 0 switches the tangential
     /// force off.
@@ -44,13 +44,13 @@ pub struct FrictionParams {
 /// Kinematics of one pair at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PairKinematics {
-    /// Overlap δ [m], positive in contact.
+    /// Overlap δ \[m\], positive in contact.
     pub overlap: f64,
     /// Overlap rate δ̇ [m/s], positive while approaching.
     pub overlap_rate: f64,
-    /// Effective radius r* [m] (paper eq. 12).
+    /// Effective radius r* \[m\] (paper eq. 12).
     pub effective_radius: f64,
-    /// Effective mass m* [kg] (paper eq. 11).
+    /// Effective mass m* \[kg\] (paper eq. 11).
     pub effective_mass: f64,
 }
 
@@ -79,9 +79,9 @@ pub enum Branch {
 /// Result of the normal law for one pair.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NormalForce {
-    /// Total normal force [N], positive when repulsive.
+    /// Total normal force \[N\], positive when repulsive.
     pub force: f64,
-    /// Its elastic (conservative) part [N]: `force − elastic` is what the damper and the sign
+    /// Its elastic (conservative) part \[N\]: `force − elastic` is what the damper and the sign
     /// rules contributed, and `(force − elastic) δ̇` the power they dissipate (M.34).
     pub elastic: f64,
     /// Bond state after this evaluation.
@@ -147,14 +147,14 @@ pub fn normal_force(
     }
 }
 
-/// Hertz branch of paper eq. 25 (M.24): `F = max(0, (4/3)E*√r* δ^{3/2} + d_con δ̇)` [N], with d_con
+/// Hertz branch of paper eq. 25 (M.24): `F = max(0, (4/3)E*√r* δ^{3/2} + d_con δ̇)` \[N\], with d_con
 /// from eq. 26 as corrected ([`damping::contact_coefficient`]). Also the particle–wall law.
 #[must_use]
 pub fn hertz_force(effective_modulus: f64, damping_ratio: f64, kin: &PairKinematics) -> f64 {
     hertz_parts(effective_modulus, damping_ratio, kin).0
 }
 
-/// [`hertz_force`] and its elastic part `(total, elastic)` [N].
+/// [`hertz_force`] and its elastic part `(total, elastic)` \[N\].
 #[must_use]
 pub fn hertz_parts(effective_modulus: f64, damping_ratio: f64, kin: &PairKinematics) -> (f64, f64) {
     let elastic = hertz::elastic_force(effective_modulus, kin.effective_radius, kin.overlap);
@@ -170,13 +170,13 @@ pub fn hertz_parts(effective_modulus: f64, damping_ratio: f64, kin: &PairKinemat
 }
 
 /// Bonded branch of paper eq. 25 (M.25): eq. 15 plus the damper of eqs. 22-24, clipped by sign
-/// rules 2 and 3 so that it never pushes away from δ_eq [N].
+/// rules 2 and 3 so that it never pushes away from δ_eq \[N\].
 #[must_use]
 pub fn bonded_force(bond: &BondParams, effective_modulus: f64, kin: &PairKinematics) -> f64 {
     bonded_parts(bond, effective_modulus, kin).0
 }
 
-/// [`bonded_force`] and its elastic part `(total, elastic)` [N].
+/// [`bonded_force`] and its elastic part `(total, elastic)` \[N\].
 #[must_use]
 pub fn bonded_parts(bond: &BondParams, effective_modulus: f64, kin: &PairKinematics) -> (f64, f64) {
     let (r_star, overlap) = (kin.effective_radius, kin.overlap);

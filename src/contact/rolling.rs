@@ -13,7 +13,7 @@ use glam::DVec3;
 /// M_r = −min(μ_r r* |F_n,el|,  |ω_rel| / (dt (1/I_i + 1/I_j))) ω_rel/|ω_rel|      [N·m]
 /// ```
 ///
-/// `μ_r` [–] is the rolling friction coefficient, `r*` [m] the effective radius, `F_n,el` [N] the
+/// `μ_r` [–] is the rolling friction coefficient, `r*` \[m\] the effective radius, `F_n,el` \[N\] the
 /// elastic normal force, `inverse_inertia_sum` = 1/I_i + 1/I_j [1/(kg·m²)] (1/I_i for a wall).
 ///
 /// **The guard.** The CDT torque has a constant magnitude and jumps at ω_rel = 0. Applied for a

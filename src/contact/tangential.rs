@@ -5,10 +5,10 @@
 //! # Conventions
 //! * `n` is the unit normal from the first body (i) to the second (j), as in `contact`.
 //! * The relative tangential velocity `v_t` is that of i's contact point relative to j's (M.59).
-//! * The history `ξ` [m] is the accumulated tangential displacement of the pair, stored in the
+//! * The history `ξ` \[m\] is the accumulated tangential displacement of the pair, stored in the
 //!   world frame for the (first → second) direction, i.e. for the pair ordered by `(id_lo, id_hi)`.
 //!   It is projected into the current tangent plane at each use, keeping its length (M.57).
-//! * The returned force is the force **on i** [N]; j receives the opposite one. SI units.
+//! * The returned force is the force **on i** \[N\]; j receives the opposite one. SI units.
 
 use glam::DVec3;
 
@@ -90,9 +90,9 @@ pub fn rotate_history(history: DVec3, normal: DVec3) -> DVec3 {
 /// Outcome of [`tangential_force`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TangentialForce {
-    /// Force on i [N], in the tangent plane.
+    /// Force on i \[N\], in the tangent plane.
     pub force: DVec3,
-    /// History after this step [m].
+    /// History after this step \[m\].
     pub history: DVec3,
     /// True when the Coulomb limit was reached (the contact slides).
     pub sliding: bool,
@@ -108,7 +108,7 @@ pub struct TangentialForce {
 /// else:              F_t = F_max F_s/|F_s|,  ξ ← −F_t/k_t   (sliding: the spring is rescaled)
 /// ```
 ///
-/// `limit` is the Coulomb limit `F_max = μ |F_n|` [N], or `None` for a bonded neck, which sticks
+/// `limit` is the Coulomb limit `F_max = μ |F_n|` \[N\], or `None` for a bonded neck, which sticks
 /// (docs/model.md section 27.5). As in LIGGGHTS, the limit is tested against the spring force
 /// alone, and a sliding contact carries no damping force: the slip itself dissipates.
 #[must_use]
@@ -143,7 +143,7 @@ pub fn tangential_force(
     }
 }
 
-/// Elastic energy of the tangential spring (M.63): `U_t = ½ k_t |ξ|²` [J].
+/// Elastic energy of the tangential spring (M.63): `U_t = ½ k_t |ξ|²` \[J\].
 #[must_use]
 pub fn spring_energy(stiffness: f64, history: DVec3) -> f64 {
     0.5 * stiffness * history.length_squared()

@@ -51,7 +51,7 @@ pub struct Field {
 pub struct Frame {
     /// Steps taken.
     pub step: u64,
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub time: f64,
     /// Per-particle datasets, each of N rows: always `id`, `position`, `velocity`, `radius`,
     /// then the optional fields selected.
@@ -65,17 +65,17 @@ pub struct Frame {
 /// Fields a scene may ask for beyond the always-written `id`, `position`, `velocity`, `radius`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum OptionalField {
-    /// Total force on each particle [N].
+    /// Total force on each particle \[N\].
     Force,
     /// Number of contacts (particles and walls) of each particle.
     Contacts,
     /// Bonded pairs (row indices), drawn as lines in ParaView.
     Bonds,
-    /// Overlap of each bond [m].
+    /// Overlap of each bond \[m\].
     BondOverlap,
-    /// Normal force of each bond [N], positive when repulsive.
+    /// Normal force of each bond \[N\], positive when repulsive.
     BondForce,
-    /// Temperature [K].
+    /// Temperature \[K\].
     Temperature,
     /// 1 once the particle has reached its melting point.
     Melted,

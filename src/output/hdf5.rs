@@ -512,7 +512,7 @@ pub struct SavedRun {
     pub frame: usize,
     /// Particle ids of the frame, in row order.
     pub id: Vec<u64>,
-    /// Positions [m].
+    /// Positions \[m\].
     pub position: Vec<DVec3>,
     /// Velocities [m/s].
     pub velocity: Vec<DVec3>,
@@ -727,11 +727,11 @@ pub struct FrameParticles {
     pub frame: usize,
     /// Particle ids, in row order.
     pub id: Vec<u64>,
-    /// Positions [m].
+    /// Positions \[m\].
     pub position: Vec<DVec3>,
     /// Velocities [m/s].
     pub velocity: Vec<DVec3>,
-    /// Radii [m].
+    /// Radii \[m\].
     pub radius: Vec<f64>,
 }
 

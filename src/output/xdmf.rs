@@ -56,7 +56,7 @@ impl Kind {
 pub struct FrameMeta {
     /// Group name under `/frames`, e.g. `000012`.
     pub name: String,
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub time: f64,
     /// Number of particles N.
     pub particles: usize,

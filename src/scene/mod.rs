@@ -73,22 +73,22 @@ pub struct Scene {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DomainConfig {
-    /// Lower corner [m].
+    /// Lower corner \[m\].
     pub min_corner_m: [f64; 3],
-    /// Upper corner [m].
+    /// Upper corner \[m\].
     pub max_corner_m: [f64; 3],
 }
 
-/// `[periodic]`: the bounds `[lower, upper]` of each periodic axis [m]; an axis not given is not
+/// `[periodic]`: the bounds `[lower, upper]` of each periodic axis \[m\]; an axis not given is not
 /// periodic. The domain repeats with period `upper − lower`.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PeriodicConfig {
-    /// Periodic in x between these bounds [m].
+    /// Periodic in x between these bounds \[m\].
     pub x_m: Option<[f64; 2]>,
-    /// Periodic in y between these bounds [m].
+    /// Periodic in y between these bounds \[m\].
     pub y_m: Option<[f64; 2]>,
-    /// Periodic in z between these bounds [m].
+    /// Periodic in z between these bounds \[m\].
     pub z_m: Option<[f64; 2]>,
 }
 
@@ -142,14 +142,14 @@ pub struct SceneHeader {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SimulationConfig {
-    /// Time step [s], `> 0`.
+    /// Time step \[s\], `> 0`.
     pub dt_s: f64,
-    /// Simulated time [s], `> 0`; the run takes `ceil(duration_s / dt_s)` steps.
+    /// Simulated time \[s\], `> 0`; the run takes `ceil(duration_s / dt_s)` steps.
     pub duration_s: f64,
     /// Gravitational acceleration [m/s²]; default none.
     #[serde(default)]
     pub gravity_m_s2: [f64; 3],
-    /// Verlet-list skin [m], `> 0`; default 10 % of the smallest particle diameter.
+    /// Verlet-list skin \[m\], `> 0`; default 10 % of the smallest particle diameter.
     pub skin_m: Option<f64>,
     /// Largest relative impact speed expected [m/s], for `am-sim check`'s time-step advice;
     /// default: twice the largest initial speed, or the free-fall speed over the scene height.
@@ -162,7 +162,7 @@ pub struct SimulationConfig {
 pub struct MaterialConfig {
     /// Mass density [kg/m³], `> 0`.
     pub density_kg_m3: f64,
-    /// Young's modulus [Pa], `> 0`.
+    /// Young's modulus \[Pa\], `> 0`.
     pub youngs_modulus_pa: f64,
     /// Poisson ratio, in `(−1, 0.5)`.
     pub poisson_ratio: f64,
@@ -170,7 +170,7 @@ pub struct MaterialConfig {
     pub specific_heat_j_kg_k: Option<f64>,
     /// Thermal conductivity k [W/(m·K)], `> 0`; needed with `[thermal]`.
     pub thermal_conductivity_w_m_k: Option<f64>,
-    /// Melting point [K], `> 0`; needed with `[thermal]`.
+    /// Melting point \[K\], `> 0`; needed with `[thermal]`.
     pub melting_point_k: Option<f64>,
     /// Latent heat of fusion L [J/kg], `≥ 0`; default 0 (melting takes no heat).
     pub latent_heat_j_kg: Option<f64>,
@@ -234,10 +234,10 @@ pub struct BondConfig {
     pub adhesion_exponent: f64,
     /// Adhesion stiffness k_adh [N·m^(−α_adh)], `≥ 0`.
     pub adhesion_stiffness: Option<f64>,
-    /// Equilibrium overlap δ_eq [m], `> 0`: k_adh is derived from it by paper eq. 13 (as in the
+    /// Equilibrium overlap δ_eq \[m\], `> 0`: k_adh is derived from it by paper eq. 13 (as in the
     /// paper's section 5.1) for two spheres of radius `reference_radius_m`.
     pub equilibrium_overlap_m: Option<f64>,
-    /// Radius of the two equal spheres at which `equilibrium_overlap_m` holds [m]; default the
+    /// Radius of the two equal spheres at which `equilibrium_overlap_m` holds \[m\]; default the
     /// radius of the particles when they all have the same one.
     pub reference_radius_m: Option<f64>,
     /// Bond damping ratio ξ_bond of paper eq. 23, `≥ 0`.
@@ -276,12 +276,12 @@ pub enum CriterionConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParticleConfig {
-    /// Centre [m].
+    /// Centre \[m\].
     pub position_m: [f64; 3],
     /// Velocity [m/s]; default at rest.
     #[serde(default)]
     pub velocity_m_s: [f64; 3],
-    /// Radius [m], `> 0`.
+    /// Radius \[m\], `> 0`.
     pub radius_m: f64,
     /// Name of a `[materials.NAME]` table.
     pub material: String,
@@ -291,16 +291,16 @@ pub struct ParticleConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LatticeConfig {
-    /// Lower corner of the box [m]; every sphere lies fully inside the box, jitter included.
+    /// Lower corner of the box \[m\]; every sphere lies fully inside the box, jitter included.
     pub min_corner_m: [f64; 3],
-    /// Upper corner of the box [m].
+    /// Upper corner of the box \[m\].
     pub max_corner_m: [f64; 3],
-    /// Radius [m], `> 0`.
+    /// Radius \[m\], `> 0`.
     pub radius_m: f64,
-    /// Distance between neighbouring lattice sites [m]; default `2 radius_m` (touching). Down to
+    /// Distance between neighbouring lattice sites \[m\]; default `2 radius_m` (touching). Down to
     /// `1.8 radius_m` gives a pre-compressed lattice (initial overlaps up to 20 % of the radius).
     pub spacing_m: Option<f64>,
-    /// Random displacement of each site, uniform in `[−jitter_m, jitter_m]` per axis [m];
+    /// Random displacement of each site, uniform in `[−jitter_m, jitter_m]` per axis \[m\];
     /// `jitter_m ≤ (spacing − 2 radius)/2` so that no two spheres overlap. Default 0.
     #[serde(default)]
     pub jitter_m: f64,
@@ -320,9 +320,9 @@ pub struct LatticeConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InsertConfig {
-    /// Lower corner of the box [m]; every sphere lies fully inside it.
+    /// Lower corner of the box \[m\]; every sphere lies fully inside it.
     pub min_corner_m: [f64; 3],
-    /// Upper corner of the box [m].
+    /// Upper corner of the box \[m\].
     pub max_corner_m: [f64; 3],
     /// Number of spheres, `≥ 1`.
     pub count: Option<u64>,
@@ -361,21 +361,21 @@ pub enum DistributionKind {
 pub struct SizeConfig {
     /// The family.
     pub distribution: DistributionKind,
-    /// Diameter of a `constant` distribution [m].
+    /// Diameter of a `constant` distribution \[m\].
     pub diameter_m: Option<f64>,
-    /// Mean diameter [m].
+    /// Mean diameter \[m\].
     pub mean_m: Option<f64>,
-    /// Standard deviation of the diameter [m].
+    /// Standard deviation of the diameter \[m\].
     pub std_m: Option<f64>,
-    /// 10 % of the particles (by number) are smaller [m].
+    /// 10 % of the particles (by number) are smaller \[m\].
     pub d10_m: Option<f64>,
-    /// Median diameter [m].
+    /// Median diameter \[m\].
     pub d50_m: Option<f64>,
-    /// 90 % of the particles (by number) are smaller [m].
+    /// 90 % of the particles (by number) are smaller \[m\].
     pub d90_m: Option<f64>,
-    /// Smallest diameter kept [m]; smaller draws are redrawn (truncation, not clamping).
+    /// Smallest diameter kept \[m\]; smaller draws are redrawn (truncation, not clamping).
     pub min_m: Option<f64>,
-    /// Largest diameter kept [m]; larger draws are redrawn.
+    /// Largest diameter kept \[m\]; larger draws are redrawn.
     pub max_m: Option<f64>,
 }
 
@@ -407,7 +407,7 @@ pub struct ImportConfig {
     pub material: Option<String>,
     /// Factor on positions, radii and velocities (e.g. 1e-3 for a file in mm); default 1.
     pub scale: Option<f64>,
-    /// Added to every position after scaling [m]; default none.
+    /// Added to every position after scaling \[m\]; default none.
     #[serde(default)]
     pub shift_m: [f64; 3],
 }
@@ -417,14 +417,14 @@ pub struct ImportConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DepositionConfig {
-    /// Deposition time after which an unsettled bed stops the run with an error [s], `> 0`.
+    /// Deposition time after which an unsettled bed stops the run with an error \[s\], `> 0`.
     pub max_duration_s: f64,
     /// Settling threshold, `> 0`; default 1e-4.
     pub kinetic_energy_ratio: Option<f64>,
     /// Steps between checks of the criterion, `≥ 1`; default 1000.
     pub check_every_steps: Option<u64>,
     /// Background damping during deposition (M.76): velocities decay as exp(−t/τ) besides the
-    /// contacts' damping [s], `> 0`; default none. Frictionless spheres need it to come to rest.
+    /// contacts' damping \[s\], `> 0`; default none. Frictionless spheres need it to come to rest.
     pub damping_time_s: Option<f64>,
 }
 
@@ -432,13 +432,13 @@ pub struct DepositionConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct WallConfig {
-    /// A point of the plane [m].
+    /// A point of the plane \[m\].
     pub point_m: [f64; 3],
     /// Normal pointing into the domain (any length `> 0`; normalised).
     pub normal: [f64; 3],
     /// Name of a `[materials.NAME]` table (for E* of the particle–wall contact).
     pub material: String,
-    /// Fixed temperature of the wall [K] (needs `[thermal]`); absent: the wall is adiabatic.
+    /// Fixed temperature of the wall \[K\] (needs `[thermal]`); absent: the wall is adiabatic.
     pub temperature_k: Option<f64>,
 }
 
@@ -451,7 +451,7 @@ pub struct OutputConfig {
     pub file: Option<String>,
     /// Steps between two frames, `≥ 1`; or give `every_s`. Default: 100 frames per run.
     pub every_steps: Option<u64>,
-    /// Simulated time between two frames [s], `> 0` (rounded to whole steps).
+    /// Simulated time between two frames \[s\], `> 0` (rounded to whole steps).
     pub every_s: Option<f64>,
     /// Optional per-particle and per-bond fields to write (`id`, `position`, `velocity` and
     /// `radius` always are); default: every field the scene has.
@@ -516,7 +516,7 @@ impl Scene {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ThermalConfig {
-    /// Temperature of every particle at t = 0 [K], `> 0`.
+    /// Temperature of every particle at t = 0 \[K\], `> 0`.
     pub initial_temperature_k: f64,
     /// Contact conductance model (no default: the models differ by orders of magnitude).
     pub conduction: ConductionConfig,
@@ -546,7 +546,7 @@ pub enum ConductionConfig {
 pub struct ConvectionConfig {
     /// Heat-transfer coefficient h [W/(m²·K)], `≥ 0`.
     pub heat_transfer_coefficient_w_m2_k: f64,
-    /// Gas temperature [K], `> 0`.
+    /// Gas temperature \[K\], `> 0`.
     pub gas_temperature_k: f64,
 }
 
@@ -554,7 +554,7 @@ pub struct ConvectionConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RadiationConfig {
-    /// Temperature of the surroundings [K], `≥ 0`.
+    /// Temperature of the surroundings \[K\], `≥ 0`.
     pub environment_temperature_k: f64,
 }
 
@@ -562,14 +562,14 @@ pub struct RadiationConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LaserConfig {
-    /// Beam power P [W], `> 0`.
+    /// Beam power P \[W\], `> 0`.
     pub power_w: f64,
-    /// 1/e² radius w [m], `> 0`.
+    /// 1/e² radius w \[m\], `> 0`.
     pub spot_radius_m: f64,
-    /// Time at which the scan path starts [s], `≥ 0`; default 0.
+    /// Time at which the scan path starts \[s\], `≥ 0`; default 0.
     #[serde(default)]
     pub start_time_s: f64,
-    /// Side of the ray-casting cells [m], `> 0`; default a tenth of the smallest radius, but no
+    /// Side of the ray-casting cells \[m\], `> 0`; default a tenth of the smallest radius, but no
     /// smaller than 6w/1024 (at most 1024 rays across the ±3w window).
     pub raster_cell_m: Option<f64>,
     /// `[laser.path]`: where the beam goes.
@@ -582,18 +582,18 @@ pub struct LaserConfig {
 pub enum PathConfig {
     /// Straight segments through the points, at constant speed, laser on throughout.
     Polyline {
-        /// Points (x, y) [m], at least two.
+        /// Points (x, y) \[m\], at least two.
         points_m: Vec<[f64; 2]>,
         /// Scan speed [m/s], `> 0`.
         speed_m_s: f64,
     },
     /// Parallel tracks in alternating directions (a meander), laser off while jumping.
     Hatch {
-        /// Start of the first track (x, y) [m].
+        /// Start of the first track (x, y) \[m\].
         start_m: [f64; 2],
-        /// Length of each track [m], `> 0`.
+        /// Length of each track \[m\], `> 0`.
         track_length_m: f64,
-        /// Distance between neighbouring tracks [m], `> 0`.
+        /// Distance between neighbouring tracks \[m\], `> 0`.
         hatch_spacing_m: f64,
         /// Number of tracks, `≥ 1`.
         tracks: u32,
@@ -602,15 +602,15 @@ pub enum PathConfig {
         /// Axis of the tracks: `"x"` (default) or `"y"`; tracks step along the other axis.
         #[serde(default)]
         direction: Axis,
-        /// Time the beam takes (laser off) to reach the next track [s], `≥ 0`; default 0.
+        /// Time the beam takes (laser off) to reach the next track \[s\], `≥ 0`; default 0.
         #[serde(default)]
         jump_time_s: f64,
     },
     /// A beam standing still.
     Stationary {
-        /// Beam axis (x, y) [m].
+        /// Beam axis (x, y) \[m\].
         position_m: [f64; 2],
-        /// How long it shines [s], `> 0`.
+        /// How long it shines \[s\], `> 0`.
         duration_s: f64,
     },
 }

@@ -14,11 +14,11 @@ use crate::contact::{BondParams, BondState, bond, hertz};
 const DENSITY: f64 = 2000.0;
 /// Impact speed of example 5.1 [m/s].
 const SPEED: f64 = 2.6;
-/// δ_eq of example 5.1 [m].
+/// δ_eq of example 5.1 \[m\].
 const EQUILIBRIUM: f64 = 5e-5;
-/// Duration of example 5.1 [s].
+/// Duration of example 5.1 \[s\].
 const DURATION: f64 = 5e-3;
-/// The paper's time step [s].
+/// The paper's time step \[s\].
 const PAPER_DT: f64 = 5e-7;
 /// Half-width of the band around δ_eq that defines "settled" (relative).
 const BAND: f64 = 5e-3;

@@ -45,20 +45,20 @@ pub struct Options {
 pub enum Reference {
     /// A closed form; the text names it (e.g. "paper eq. 20").
     ClosedForm(&'static str),
-    /// The same run at this finer time step [s].
+    /// The same run at this finer time step \[s\].
     FineStep(f64),
 }
 
 /// One run of a sweep.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
-    /// Time step [s].
+    /// Time step \[s\].
     pub dt: f64,
     /// Measured value (in the unit of its [`Series`]).
     pub value: f64,
     /// Relative error `|value / reference − 1|` (or `|value − reference|` for a reference of 0).
     pub error: f64,
-    /// Wall time of the run [s] (stepping and measuring, not the scene setup).
+    /// Wall time of the run \[s\] (stepping and measuring, not the scene setup).
     pub wall_time: f64,
 }
 
@@ -203,7 +203,7 @@ pub struct Study {
     pub quick: bool,
     /// The case families in report order.
     pub families: Vec<Family>,
-    /// Wall time of the whole study [s].
+    /// Wall time of the whole study \[s\].
     pub wall_time: f64,
 }
 
@@ -279,7 +279,7 @@ pub fn write(study: &Study, out: &Path) -> Result<(), String> {
 }
 
 /// Steps `sim` until `done` returns true or the run's step count is reached; returns the wall
-/// time of the loop [s].
+/// time of the loop \[s\].
 fn timed_steps(sim: &mut Simulation, mut done: impl FnMut(&Simulation) -> bool) -> f64 {
     let start = Instant::now();
     while sim.step < sim.model.steps {
@@ -309,7 +309,7 @@ fn best_of<T>(quick: bool, mut case: impl FnMut() -> T, wall: impl Fn(&T) -> f64
     (first, best)
 }
 
-/// Time spent re-running a short case to time it [s] (see [`best_of`]).
+/// Time spent re-running a short case to time it \[s\] (see [`best_of`]).
 const TIMING_BUDGET: f64 = 0.02;
 
 /// Time steps `scale / n` for the step counts `n` of the full or quick sweep.

@@ -6,16 +6,16 @@ use crate::model::Model;
 use crate::scene::Scene;
 use crate::simulation::Simulation;
 
-/// Radius of the spheres of the paper's section 5 [m].
+/// Radius of the spheres of the paper's section 5 \[m\].
 pub const PAPER_RADIUS: f64 = 1e-3;
-/// Young's modulus of section 5 [Pa] (ν = 0).
+/// Young's modulus of section 5 \[Pa\] (ν = 0).
 pub const PAPER_YOUNGS: f64 = 1e9;
-/// E* = E/2 for ν = 0 (paper eq. 12) [Pa].
+/// E* = E/2 for ν = 0 (paper eq. 12) \[Pa\].
 pub const PAPER_E_STAR: f64 = 0.5 * PAPER_YOUNGS;
-/// r* = r/2 for two equal spheres (paper eq. 12) [m].
+/// r* = r/2 for two equal spheres (paper eq. 12) \[m\].
 pub const PAPER_R_STAR: f64 = 0.5 * PAPER_RADIUS;
 
-/// Mass of one sphere of the paper's radius at `density` [kg].
+/// Mass of one sphere of the paper's radius at `density` \[kg\].
 #[must_use]
 pub fn paper_sphere_mass(density: f64) -> f64 {
     density * 4.0 / 3.0 * std::f64::consts::PI * PAPER_RADIUS.powi(3)
@@ -56,7 +56,7 @@ pub fn two_spheres(
 }
 
 /// Scene text of two spheres of section 5 (r = 1 mm, E = 1 GPa, ν = 0) of `density` [kg/m³],
-/// centred on the origin `distance` [m] apart along x (less than 2r: initially overlapping) and
+/// centred on the origin `distance` \[m\] apart along x (less than 2r: initially overlapping) and
 /// approaching each other at `relative_speed` [m/s] (each moves at half of it), with contact
 /// damping ratio ξ_con and an optional bond with its criterion ("always", "never", ...).
 /// The integration tests build their two-sphere scenes with it too.
@@ -109,7 +109,7 @@ material = "paper"
     )
 }
 
-/// Overlap of particles 0 and 1 [m].
+/// Overlap of particles 0 and 1 \[m\].
 #[must_use]
 pub fn overlap(sim: &Simulation) -> f64 {
     let p = &sim.particles;
@@ -137,7 +137,7 @@ pub fn steel_capacity(radius: f64) -> f64 {
 
 /// A thermal scene. `thermal` is the body of `[thermal]` (without `substep_fraction`, which is
 /// `theta`), `material_extra` extra keys of the material, `extra` further tables, `particles`
-/// the `[[particles]]` tables; `youngs` the modulus [Pa].
+/// the `[[particles]]` tables; `youngs` the modulus \[Pa\].
 #[allow(clippy::too_many_arguments)]
 #[must_use]
 pub fn thermal(

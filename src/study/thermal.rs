@@ -7,22 +7,22 @@ use super::{Family, Reference, Series, best_of, steps, timed_steps};
 use crate::contact::bond;
 use crate::thermal::losses::sphere_area;
 
-/// Radius of the single sphere, and of the larger of the pair [m].
+/// Radius of the single sphere, and of the larger of the pair \[m\].
 const RADIUS: f64 = 1e-4;
-/// Radius of the smaller sphere of the pair [m].
+/// Radius of the smaller sphere of the pair \[m\].
 const SMALL_RADIUS: f64 = 0.7e-4;
 /// Convection coefficient h [W/(m²·K)].
 const CONVECTION: f64 = 5e3;
-/// Gas temperature [K].
+/// Gas temperature \[K\].
 const GAS: f64 = 300.0;
-/// Initial temperature of the hot sphere [K].
+/// Initial temperature of the hot sphere \[K\].
 const HOT: f64 = 1000.0;
 /// Conductivity k of the pair [W/(m·K)].
 const CONDUCTIVITY: f64 = 20.0;
-/// Young's modulus of the pair [Pa]: 1 kPa makes the bond oscillation period (≈ 0.1 s) longer
+/// Young's modulus of the pair \[Pa\]: 1 kPa makes the bond oscillation period (≈ 0.1 s) longer
 /// than any step used, so the pair rests at δ_eq and its conductance stays fixed.
 const SOFT_YOUNGS: f64 = 1e3;
-/// Melting point [K] and latent heat [J/kg] of the plateau case.
+/// Melting point \[K\] and latent heat [J/kg] of the plateau case.
 const MELTING: f64 = 1700.0;
 const LATENT: f64 = 2.7e5;
 

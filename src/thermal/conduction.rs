@@ -1,10 +1,10 @@
-//! Conductance of a contact: heat flows `Q_i = H (T_j − T_i)` into particle i [W], with the
+//! Conductance of a contact: heat flows `Q_i = H (T_j − T_i)` into particle i \[W\], with the
 //! conductance H [W/K] from one of two named models. They differ by large factors for Hertzian
 //! contacts (the pipe model scales with a², Batchelor & O'Brien with a), so the scene must choose.
 //!
-//! Both are functions of the Hertz contact radius `a = √(r* δ)` (M.40) [m].
+//! Both are functions of the Hertz contact radius `a = √(r* δ)` (M.40) \[m\].
 
-/// Hertz contact radius `a = √(r* δ)` (M.40) [m]; 0 without overlap.
+/// Hertz contact radius `a = √(r* δ)` (M.40) \[m\]; 0 without overlap.
 #[must_use]
 #[inline]
 pub fn contact_radius(effective_radius: f64, overlap: f64) -> f64 {
@@ -31,7 +31,7 @@ pub fn batchelor_obrien(conductivity_i: f64, conductivity_j: f64, contact_radius
 }
 
 /// "Thermal pipe" conductance of the coupled thermo-mechanical model of Quintana-Ruiz & Campello
-/// (2020, J. Braz. Soc. Mech. Sci. Eng. 42:387, reference [8] of the bond paper) (M.42) [W/K]:
+/// (2020, J. Braz. Soc. Mech. Sci. Eng. 42:387, reference \[8\] of the bond paper) (M.42) [W/K]:
 ///
 /// ```text
 /// H = k̄ π a² / d,   k̄ = (r_i + r_j) / (r_i/k_i + r_j/k_j)

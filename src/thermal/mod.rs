@@ -39,7 +39,7 @@ pub struct ThermalMaterial {
     pub specific_heat: f64,
     /// Thermal conductivity k [W/(m·K)].
     pub conductivity: f64,
-    /// Melting point T_m [K].
+    /// Melting point T_m \[K\].
     pub melting_point: f64,
     /// Latent heat of fusion L [J/kg] (0: melting takes no heat).
     pub latent_heat: f64,
@@ -69,11 +69,11 @@ pub struct ThermalModel {
     pub conduction: ConductionModel,
     /// `(h [W/(m²·K)], T_gas [K])`, if convection is on.
     pub convection: Option<(f64, f64)>,
-    /// Surroundings temperature T_env [K], if radiation is on.
+    /// Surroundings temperature T_env \[K\], if radiation is on.
     pub radiation: Option<f64>,
-    /// Per wall: its fixed temperature [K], or `None` for an adiabatic wall.
+    /// Per wall: its fixed temperature \[K\], or `None` for an adiabatic wall.
     pub wall_temperatures: Vec<Option<f64>>,
-    /// Initial temperature of every particle [K].
+    /// Initial temperature of every particle \[K\].
     pub initial_temperature: f64,
     /// θ of (M.49): a substep is at most θ times the smallest `C_i / G_i`; `0 < θ ≤ 1`.
     pub substep_fraction: f64,
@@ -104,32 +104,32 @@ impl ThermalModel {
 /// Per-particle thermal state (structure of arrays, like `Particles`).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ThermalState {
-    /// Temperature [K], `T(E)` of (M.48).
+    /// Temperature \[K\], `T(E)` of (M.48).
     pub temperature: Vec<f64>,
-    /// Enthalpy [J], the integrated state (M.48).
+    /// Enthalpy \[J\], the integrated state (M.48).
     pub enthalpy: Vec<f64>,
     /// Heat capacity `C = m c` [J/K].
     pub heat_capacity: Vec<f64>,
-    /// Latent heat of the whole particle `m L` [J].
+    /// Latent heat of the whole particle `m L` \[J\].
     pub latent_heat: Vec<f64>,
-    /// Melting point [K] (per particle, from its material).
+    /// Melting point \[K\] (per particle, from its material).
     pub melting_point: Vec<f64>,
     /// Latched bond criterion: the particle has reached its melting point at some time.
     pub melted: Vec<bool>,
-    /// Laser power absorbed during the current step [W].
+    /// Laser power absorbed during the current step \[W\].
     pub laser_power: Vec<f64>,
     /// Per pair slot of the neighbour list: contact conductance H [W/K] of this step.
     pub conductance: Vec<f64>,
-    /// Net heat flow into each particle at the start of the current substep [W].
+    /// Net heat flow into each particle at the start of the current substep \[W\].
     pub(crate) heat_flow: Vec<f64>,
     /// Per particle: total conductance G_i [W/K] (M.49).
     pub(crate) total_conductance: Vec<f64>,
-    /// Heat flow from walls, gas and surroundings into each particle [W] (part of `heat_flow`).
+    /// Heat flow from walls, gas and surroundings into each particle \[W\] (part of `heat_flow`).
     pub(crate) boundary_flow: Vec<f64>,
-    /// Per particle: laser energy absorbed since the start [J]. Kept per particle, so the pass
+    /// Per particle: laser energy absorbed since the start \[J\]. Kept per particle, so the pass
     /// that adds to it writes only its own slot; totals are summed when asked for.
     pub laser_energy: Vec<f64>,
-    /// Per particle: heat received from walls, gas and surroundings since the start [J].
+    /// Per particle: heat received from walls, gas and surroundings since the start \[J\].
     pub boundary_energy: Vec<f64>,
     /// Substeps taken in the last step.
     pub substeps: u32,
@@ -157,7 +157,7 @@ impl ThermalState {
     }
 }
 
-/// Temperature of a particle from its enthalpy (M.48) [K]:
+/// Temperature of a particle from its enthalpy (M.48) \[K\]:
 ///
 /// ```text
 /// T = E / C                     for E < C T_m          (solid)
@@ -182,7 +182,7 @@ pub fn temperature_from_enthalpy(
     }
 }
 
-/// Enthalpy of a particle at temperature `T` (M.48) [J]; a particle at exactly T_m is solid.
+/// Enthalpy of a particle at temperature `T` (M.48) \[J\]; a particle at exactly T_m is solid.
 #[must_use]
 #[inline]
 pub fn enthalpy_from_temperature(
@@ -248,19 +248,19 @@ impl ThermalState {
         state
     }
 
-    /// Total enthalpy `Σ E_i` [J], summed in index order (reproducible).
+    /// Total enthalpy `Σ E_i` \[J\], summed in index order (reproducible).
     #[must_use]
     pub fn total_enthalpy(&self) -> f64 {
         self.enthalpy.iter().sum()
     }
 
-    /// Laser energy absorbed by all particles since the start [J] (summed in index order).
+    /// Laser energy absorbed by all particles since the start \[J\] (summed in index order).
     #[must_use]
     pub fn total_laser_energy(&self) -> f64 {
         self.laser_energy.iter().sum()
     }
 
-    /// Heat received from walls, gas and surroundings since the start [J] (negative: lost).
+    /// Heat received from walls, gas and surroundings since the start \[J\] (negative: lost).
     #[must_use]
     pub fn total_boundary_energy(&self) -> f64 {
         self.boundary_energy.iter().sum()
@@ -279,7 +279,7 @@ impl ThermalState {
     }
 }
 
-/// Conductance of the contact between particles `a` and `b` at `overlap` [m] (M.41, M.42) [W/K];
+/// Conductance of the contact between particles `a` and `b` at `overlap` \[m\] (M.41, M.42) [W/K];
 /// 0 without overlap.
 #[must_use]
 #[inline]
@@ -388,7 +388,7 @@ type OwnSlots<'a> = (
 /// What [`advance`] needs to know about the step besides the state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepInfo {
-    /// Mechanical time step [s].
+    /// Mechanical time step \[s\].
     pub dt: f64,
     /// `Some(max G_i / C_i)` [1/s] when the force gather already computed the first substep's
     /// heat flows.
@@ -397,7 +397,7 @@ pub struct StepInfo {
     pub laser_on: bool,
 }
 
-/// Advances the temperatures over one mechanical step `dt` [s] by (M.49), using the contact
+/// Advances the temperatures over one mechanical step `dt` \[s\] by (M.49), using the contact
 /// conductances and laser powers already stored in `state`.
 ///
 /// Per substep: one pass over the particles computes every heat flow (and, in the first, every
@@ -500,7 +500,7 @@ pub fn advance(
     state.max_substeps = state.max_substeps.max(substeps);
 }
 
-/// Exchange of particle `k` at temperature `t` [K] with isothermal walls, the gas and the
+/// Exchange of particle `k` at temperature `t` \[K\] with isothermal walls, the gas and the
 /// surroundings: `(heat flow into it [W], total conductance [W/K])`, radiation linearised at
 /// `max(T, T_m, T_env)` (a laser may heat the particle within the step).
 #[must_use]
@@ -541,7 +541,7 @@ pub fn boundary_heat(
     (flow, conductance)
 }
 
-/// Net heat flow into every particle at the current temperatures [W] and its total conductance
+/// Net heat flow into every particle at the current temperatures \[W\] and its total conductance
 /// G_i: a coloured pass over the pairs (each pair's flow added to both particles, in the list's
 /// fixed order), then the boundary exchange and laser power per particle. Returns
 /// `max_i G_i / C_i` [1/s]. The first substep of a step gets these from the force pass instead.
