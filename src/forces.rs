@@ -15,11 +15,12 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::contact::tangential::TangentialSpring;
 use crate::contact::{self, BondState, FrictionParams, PairKinematics, hertz, rolling, tangential};
 use crate::model::Model;
 use crate::neighbor::NeighborList;
-use crate::pair_history::{HistoryTargets, PairTangential, TangentialHistories};
-use crate::particles::{Particles, Rotation, WallTangential};
+use crate::pair_history::{HistoryTargets, TangentialHistories};
+use crate::particles::{Particles, Rotation};
 use crate::periodic::Periodic;
 use crate::scatter::{self, PerParticle, PerSlot, Scatter, Window};
 use crate::thermal::{self, ThermalModel};
@@ -125,8 +126,8 @@ struct TangentialStep {
     force: DVec3,
     /// Rolling torque on the first body [N·m] (the second gets the opposite).
     rolling_torque: DVec3,
-    history: DVec3,
-    spring_energy: f64,
+    /// The spring after the step.
+    spring: TangentialSpring,
     /// Energy lost over the step \[J\] (M.63).
     lost: f64,
 }
@@ -140,13 +141,12 @@ fn tangential_step(
     dt: f64,
     kinematics: &PairKinematics,
     contact: &TangentialContact,
-    history: DVec3,
-    spring_energy: f64,
+    held: TangentialSpring,
 ) -> TangentialStep {
     let n = contact.normal;
     let v = contact.contact_velocity;
     let tangential_velocity = v - v.dot(n) * n;
-    let (mut force, mut new_history, mut new_energy) = (DVec3::ZERO, DVec3::ZERO, 0.0);
+    let (mut force, mut spring) = (DVec3::ZERO, TangentialSpring::default());
     if params.sliding > 0.0 || contact.bonded {
         let stiffness = tangential::stiffness(
             params.effective_shear_modulus,
@@ -158,7 +158,7 @@ fn tangential_step(
         // LIGGGHTS caps with the total normal force (M.59, section 27.3).
         let limit = (!contact.bonded).then(|| params.sliding * contact.normal_force.abs());
         let out = tangential::tangential_force(
-            tangential::rotate_history(history, n),
+            tangential::rotate_history(held.history, n),
             tangential_velocity,
             dt,
             stiffness,
@@ -166,8 +166,10 @@ fn tangential_step(
             limit,
         );
         force = out.force;
-        new_history = out.history;
-        new_energy = tangential::spring_energy(stiffness, new_history);
+        spring = TangentialSpring {
+            history: out.history,
+            spring_energy: tangential::spring_energy(stiffness, out.history),
+        };
     }
     let rolling_torque = rolling::rolling_torque(
         params.rolling,
@@ -178,13 +180,12 @@ fn tangential_step(
         dt,
     );
     let lost = -dt * force.dot(tangential_velocity)
-        - (new_energy - spring_energy)
+        - (spring.spring_energy - held.spring_energy)
         - dt * rolling_torque.dot(contact.relative_angular_velocity);
     TangentialStep {
         force,
         rolling_torque,
-        history: new_history,
-        spring_energy: new_energy,
+        spring,
         lost,
     }
 }
@@ -404,24 +405,15 @@ fn owner_pairs(
                 elastic_normal_force: outcome.elastic,
                 bonded: outcome.state == BondState::Bonded,
             };
-            let held = histories.read(window, p);
             let step = tangential_step(
                 friction,
                 params.damping_ratio,
                 model.dt,
                 &kinematics,
                 &contact,
-                held.history,
-                held.spring_energy,
+                histories.read(window, p),
             );
-            histories.write(
-                window,
-                p,
-                PairTangential {
-                    history: step.history,
-                    spring_energy: step.spring_energy,
-                },
-            );
+            histories.write(window, p, step.spring);
             force_on_a += step.force;
             lost += step.lost;
             let lever = normal.cross(step.force);
@@ -525,9 +517,9 @@ fn particle_pass(
             if overlap <= 0.0 {
                 if let Some(slots) = &walls {
                     let held = slots.read(window, k * stride + w);
-                    if held != WallTangential::default() {
+                    if held != TangentialSpring::default() {
                         lost += held.spring_energy;
-                        slots.update(window, k * stride + w, |s| *s = WallTangential::default());
+                        slots.update(window, k * stride + w, |s| *s = TangentialSpring::default());
                     }
                 }
                 continue;
@@ -564,25 +556,18 @@ fn particle_pass(
                     elastic_normal_force: elastic,
                     bonded: false,
                 };
-                let held = slots.read(window, k * stride + w);
                 let step = tangential_step(
                     tables.wall(w, state.material[k]),
                     params.damping_ratio,
                     model.dt,
                     &kinematics,
                     &contact,
-                    held.history,
-                    held.spring_energy,
+                    slots.read(window, k * stride + w),
                 );
                 force += step.force;
                 torque_k += arm * normal.cross(step.force) + step.rolling_torque;
                 lost += step.lost;
-                slots.update(window, k * stride + w, |s| {
-                    *s = WallTangential {
-                        history: step.history,
-                        spring_energy: step.spring_energy,
-                    };
-                });
+                slots.update(window, k * stride + w, |s| *s = step.spring);
             }
         }
         let mut total = DVec3::ZERO;

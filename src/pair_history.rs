@@ -14,48 +14,26 @@
 
 use rayon::prelude::*;
 
+use crate::contact::tangential::TangentialSpring;
 use crate::neighbor::{HeldPairs, NeighborList};
 use crate::scatter::{PerSlab, PerSlot, Scatter, Window};
-use glam::DVec3;
 
 /// A slot without a history entry.
 pub const NO_ENTRY: u32 = u32::MAX;
-
-/// The tangential spring of one pair in contact.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct PairTangential {
-    /// Tangential displacement ξ \[m\] of the owner relative to the partner, world frame, turned
-    /// into the current tangent plane at each use (M.58). It changes sign when the pair's owner
-    /// changes ends at a rebuild.
-    pub history: DVec3,
-    /// Spring energy `½ k_t |ξ|²` at the last evaluation \[J\] (M.63).
-    pub spring_energy: f64,
-}
-
-impl PairTangential {
-    /// The same spring seen from the other particle.
-    #[must_use]
-    pub fn turned(self) -> Self {
-        Self {
-            history: -self.history,
-            ..self
-        }
-    }
-}
 
 /// The springs of one slab's contacts: those the last pass left (`springs`, read by the next
 /// pass) and those the running pass writes (`next`).
 #[derive(Debug, Clone, Default)]
 pub struct Pool {
-    springs: Vec<PairTangential>,
-    next: Vec<PairTangential>,
+    springs: Vec<TangentialSpring>,
+    next: Vec<TangentialSpring>,
 }
 
 impl Pool {
     /// Appends `value` to `buffer` and returns its entry number. A full buffer grows by an
     /// eighth, not twice its size: it holds the slab's contacts, whose number changes slowly.
     #[inline]
-    fn append(buffer: &mut Vec<PairTangential>, value: PairTangential) -> u32 {
+    fn append(buffer: &mut Vec<TangentialSpring>, value: TangentialSpring) -> u32 {
         if buffer.len() == buffer.capacity() {
             buffer.reserve_exact(buffer.len() / 8 + 16);
         }
@@ -92,7 +70,7 @@ impl TangentialHistories {
         list: &NeighborList,
         ids: &[u64],
         held: &HeldPairs<T>,
-        value: impl Fn(&T, bool) -> PairTangential + Sync,
+        value: impl Fn(&T, bool) -> TangentialSpring + Sync,
     ) -> Self {
         let mut histories = Self::new(list);
         if held.is_empty() {
@@ -124,7 +102,7 @@ impl TangentialHistories {
             pool.springs.reserve_exact(slots.len());
             for (p, e, turned) in slots {
                 let spring = value(held.value(e as usize), turned);
-                if spring != PairTangential::default() {
+                if spring != TangentialSpring::default() {
                     histories.entry[p as usize] = Pool::append(&mut pool.springs, spring);
                 }
             }
@@ -135,15 +113,15 @@ impl TangentialHistories {
     /// Slot `p`'s history (owner `owner`); zero when it has none, or when the scene has no
     /// rotation (an empty store).
     #[must_use]
-    pub fn get(&self, list: &NeighborList, p: usize, owner: usize) -> PairTangential {
+    pub fn get(&self, list: &NeighborList, p: usize, owner: usize) -> TangentialSpring {
         match self.entry.get(p) {
-            None | Some(&NO_ENTRY) => PairTangential::default(),
+            None | Some(&NO_ENTRY) => TangentialSpring::default(),
             Some(&e) => self.pools[list.slab_of(owner)].springs[e as usize],
         }
     }
 
     /// Sets slot `p`'s history (owner `owner`), outside the pair pass.
-    pub fn set(&mut self, list: &NeighborList, p: usize, owner: usize, value: PairTangential) {
+    pub fn set(&mut self, list: &NeighborList, p: usize, owner: usize, value: TangentialSpring) {
         let pool = &mut self.pools[list.slab_of(owner)];
         match self.entry[p] {
             NO_ENTRY => self.entry[p] = Pool::append(&mut pool.springs, value),
@@ -214,9 +192,9 @@ impl HistoryTargets<'_> {
     /// Slot `p`'s spring as the last pass left it (zero without an entry).
     #[inline]
     #[must_use]
-    pub fn read(&self, window: &Window<'_>, p: usize) -> PairTangential {
+    pub fn read(&self, window: &Window<'_>, p: usize) -> TangentialSpring {
         match self.entry.read(window, p) {
-            NO_ENTRY => PairTangential::default(),
+            NO_ENTRY => TangentialSpring::default(),
             e => self
                 .pools
                 .update_own(window, |pool| pool.springs[e as usize]),
@@ -225,8 +203,8 @@ impl HistoryTargets<'_> {
 
     /// Stores slot `p`'s spring for the next pass (a zero spring takes no entry).
     #[inline]
-    pub fn write(&self, window: &Window<'_>, p: usize, value: PairTangential) {
-        let e = if value == PairTangential::default() {
+    pub fn write(&self, window: &Window<'_>, p: usize, value: TangentialSpring) {
+        let e = if value == TangentialSpring::default() {
             NO_ENTRY
         } else {
             self.pools
@@ -237,9 +215,9 @@ impl HistoryTargets<'_> {
 
     /// The contact of slot `p` ended: returns what its spring held, and the slot keeps none.
     #[inline]
-    pub fn release(&self, window: &Window<'_>, p: usize) -> PairTangential {
+    pub fn release(&self, window: &Window<'_>, p: usize) -> TangentialSpring {
         match self.entry.read(window, p) {
-            NO_ENTRY => PairTangential::default(),
+            NO_ENTRY => TangentialSpring::default(),
             e => {
                 self.entry.update(window, p, |slot| *slot = NO_ENTRY);
                 self.pools
@@ -252,9 +230,10 @@ impl HistoryTargets<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DVec3;
 
-    fn spring(x: f64) -> PairTangential {
-        PairTangential {
+    fn spring(x: f64) -> TangentialSpring {
+        TangentialSpring {
             history: DVec3::new(x, 0.0, 0.0),
             spring_energy: x.abs(),
         }
@@ -286,7 +265,7 @@ mod tests {
         assert_eq!(histories.spring_energy(), 10.0 + 11.0);
         let held = list.held_pairs(&ids, |p, owner| {
             let t = histories.get(&list, p, owner);
-            (t != PairTangential::default()).then_some(t)
+            (t != TangentialSpring::default()).then_some(t)
         });
         // Reverse the storage order: every owner changes ends.
         positions.reverse();
@@ -306,7 +285,7 @@ mod tests {
             let lower = ids[owner].min(ids[partner]);
             let t = carried.get(&list, p, owner);
             if lower == 12 {
-                assert_eq!(t, PairTangential::default());
+                assert_eq!(t, TangentialSpring::default());
             } else {
                 let sign = if ids[owner] < ids[partner] { 1.0 } else { -1.0 };
                 assert_eq!(t, spring(sign * lower as f64), "pair from id {lower}");

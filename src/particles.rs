@@ -4,6 +4,8 @@
 
 use glam::DVec3;
 
+use crate::contact::tangential::TangentialSpring;
+
 /// Everything needed to add one particle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ParticleInit {
@@ -110,15 +112,6 @@ impl Particles {
     }
 }
 
-/// Tangential contact history of one particle against one wall (M.58, M.63).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct WallTangential {
-    /// Tangential displacement ξ \[m\], world frame, particle relative to the wall.
-    pub history: DVec3,
-    /// Spring energy `½ k_t |ξ|²` at the last evaluation \[J\] (M.63).
-    pub spring_energy: f64,
-}
-
 /// Rotation of the spheres (M.62), only for scenes with friction or rolling resistance; indexed
 /// like [`Particles`].
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -131,7 +124,7 @@ pub struct Rotation {
     pub walls: usize,
     /// Tangential history of every particle against every wall, `[k * wall_stride() + w]`: each particle
     /// owns its own slots, so the wall pass needs no shared writes.
-    pub wall_contacts: Vec<WallTangential>,
+    pub wall_contacts: Vec<TangentialSpring>,
 }
 
 impl Rotation {
@@ -142,7 +135,7 @@ impl Rotation {
             angular_velocity: vec![DVec3::ZERO; particles],
             torque: vec![DVec3::ZERO; particles],
             walls,
-            wall_contacts: vec![WallTangential::default(); particles * walls.max(1)],
+            wall_contacts: vec![TangentialSpring::default(); particles * walls.max(1)],
         }
     }
 

@@ -13,13 +13,14 @@
 //!    of the next step's pair pass reads them.
 //! 7. Second half kick (M.32).
 
+use crate::contact::tangential::TangentialSpring;
 use crate::contact::{BondState, NormalParams, hertz, rolling, tangential};
 use crate::forces::{self, ForceSummary};
 use crate::integrate;
 use crate::laser;
 use crate::model::Model;
 use crate::neighbor::{HeldPairs, NeighborList};
-use crate::pair_history::{PairTangential, TangentialHistories};
+use crate::pair_history::TangentialHistories;
 use crate::particles::{Particles, Rotation};
 use crate::thermal::{self, ThermalState};
 
@@ -385,11 +386,11 @@ impl Simulation {
     fn rotation_restart(&self, rotation: &Rotation) -> RotationRestart {
         // Saved by id key, oriented from the lower id to the higher (slots are oriented owner →
         // partner, and the owner depends on the storage order).
-        let held: Vec<((u64, u64), PairTangential)> = self
+        let held: Vec<((u64, u64), TangentialSpring)> = self
             .pair_keys()
             .filter_map(|(p, owner, key, owner_is_lower)| {
                 let t = self.tangential.get(&self.neighbors, p, owner);
-                (t != PairTangential::default())
+                (t != TangentialSpring::default())
                     .then_some((key, if owner_is_lower { t } else { t.turned() }))
             })
             .collect();
@@ -540,7 +541,7 @@ impl Simulation {
         sim.neighbors.build(&reference, &sim.particles.radius);
         sim.carry_pairs(&HeldPairs::default(), &HeldPairs::default());
         let bonded: std::collections::HashSet<(u64, u64)> = state.bonded.into_iter().collect();
-        let held: std::collections::HashMap<(u64, u64), PairTangential> = state
+        let held: std::collections::HashMap<(u64, u64), TangentialSpring> = state
             .rotation
             .as_ref()
             .map(|saved| {
@@ -549,7 +550,7 @@ impl Simulation {
                     .iter()
                     .zip(saved.pair_history.iter().zip(&saved.pair_spring_energy))
                     .map(|(key, (history, spring_energy))| {
-                        let t = PairTangential {
+                        let t = TangentialSpring {
                             history: *history,
                             spring_energy: *spring_energy,
                         };
@@ -654,7 +655,7 @@ impl Simulation {
         });
         let springs = list.held_pairs(ids, |p, owner| {
             let spring = tangential.get(list, p, owner);
-            (spring != PairTangential::default()).then_some(spring)
+            (spring != TangentialSpring::default()).then_some(spring)
         });
         // The old per-slot arrays go before the new ones are built (peak memory).
         self.bond_states = Vec::new();
@@ -684,7 +685,7 @@ impl Simulation {
     }
 
     /// The pair data of the rebuilt list, from the bonds and springs held before the rebuild.
-    fn carry_pairs(&mut self, bonds: &HeldPairs<BondState>, springs: &HeldPairs<PairTangential>) {
+    fn carry_pairs(&mut self, bonds: &HeldPairs<BondState>, springs: &HeldPairs<TangentialSpring>) {
         let ids = &self.particles.id;
         self.bond_states = self.neighbors.carry(ids, bonds, |state, _| *state);
         if self.rotation.is_some() {
@@ -747,9 +748,7 @@ impl Simulation {
     fn clear_tangential_history(&mut self) {
         if let Some(rotation) = &mut self.rotation {
             self.tangential.clear();
-            rotation
-                .wall_contacts
-                .fill(crate::particles::WallTangential::default());
+            rotation.wall_contacts.fill(TangentialSpring::default());
         }
     }
 

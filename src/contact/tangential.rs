@@ -5,12 +5,35 @@
 //! # Conventions
 //! * `n` is the unit normal from the first body (i) to the second (j), as in `contact`.
 //! * The relative tangential velocity `v_t` is that of i's contact point relative to j's (M.59).
-//! * The history `ξ` \[m\] is the accumulated tangential displacement of the pair, stored in the
-//!   world frame for the (first → second) direction, i.e. for the pair ordered by `(id_lo, id_hi)`.
-//!   It is projected into the current tangent plane at each use, keeping its length (M.57).
+//! * The history `ξ` \[m\] is the accumulated tangential displacement of the contact, stored in
+//!   the world frame for the (first → second) direction: a pair's owner → partner, a particle →
+//!   wall. It is projected into the current tangent plane at each use, keeping its length (M.57).
 //! * The returned force is the force **on i** \[N\]; j receives the opposite one. SI units.
 
 use glam::DVec3;
+
+/// The tangential spring a contact carries from one step to the next (a pair in contact, or a
+/// particle against a wall).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TangentialSpring {
+    /// Tangential displacement ξ \[m\] of the first body relative to the second, world frame,
+    /// turned into the current tangent plane at each use (M.58). A pair's spring changes sign
+    /// when the pair's owner changes ends at a rebuild.
+    pub history: DVec3,
+    /// Spring energy `½ k_t |ξ|²` at the last evaluation \[J\] (M.63).
+    pub spring_energy: f64,
+}
+
+impl TangentialSpring {
+    /// The same spring seen from the other body.
+    #[must_use]
+    pub fn turned(self) -> Self {
+        Self {
+            history: -self.history,
+            ..self
+        }
+    }
+}
 
 /// Effective shear modulus of two materials (M.56):
 ///
