@@ -27,16 +27,19 @@ pub const CSV_COLUMNS: [&str; 9] = [
     "id", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s", "vz_m_s", "radius_m", "material",
 ];
 
+/// True when `path` names a gzip file (its name ends in `.gz`).
+fn is_gzip(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gz"))
+}
+
 /// Opens a text file for reading line by line, gunzipping it when its name ends in `.gz`.
 ///
 /// # Errors
 /// The I/O error, as text.
 pub fn open_text(path: &Path) -> Result<Box<dyn std::io::BufRead>, String> {
     let file = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
-    let gz = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
-    Ok(if gz {
+    Ok(if is_gzip(path) {
         Box::new(std::io::BufReader::new(flate2::read::MultiGzDecoder::new(
             std::io::BufReader::new(file),
         )))
@@ -50,17 +53,13 @@ pub fn open_text(path: &Path) -> Result<Box<dyn std::io::BufRead>, String> {
 /// # Errors
 /// The I/O or decompression error, as text.
 pub fn read_text(path: &Path) -> Result<String, String> {
-    let file = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
     let mut text = String::new();
-    let gz = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
-    let read = if gz {
-        flate2::read::MultiGzDecoder::new(std::io::BufReader::new(file)).read_to_string(&mut text)
-    } else {
-        std::io::BufReader::new(file).read_to_string(&mut text)
-    };
-    read.map_err(|e| format!("cannot read{}: {e}", if gz { " (gzip)" } else { "" }))?;
+    open_text(path)?.read_to_string(&mut text).map_err(|e| {
+        format!(
+            "cannot read{}: {e}",
+            if is_gzip(path) { " (gzip)" } else { "" }
+        )
+    })?;
     Ok(text)
 }
 
