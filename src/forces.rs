@@ -24,6 +24,7 @@ use crate::particles::{Particles, Rotation};
 use crate::periodic::Periodic;
 use crate::scatter::{self, PerParticle, PerSlot, Scatter, Window};
 use crate::thermal::{self, ThermalModel};
+use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
 
 /// `x_b − x_a` \[m\], as its minimum image across periodic axes (M.77).
 #[inline]
@@ -475,23 +476,29 @@ fn particle_pass(
     let mut forces = std::mem::take(&mut particles.force);
     let mut dissipated = std::mem::take(&mut particles.dissipated);
     let state = &*particles;
-    let (omega, torque, walls, stride) = match rotation {
+    let count = state.len();
+    let (omega, torque, mut wall_springs) = match rotation {
         Some(r) => {
-            let stride = r.wall_stride();
             let Rotation {
                 angular_velocity,
                 torque,
-                wall_contacts,
+                wall_springs,
                 ..
             } = r;
             (
                 Some(angular_velocity.as_slice()),
                 Some(Scatter::<_, PerParticle>::new(torque)),
-                Some(Scatter::<_, PerSlot>::new(wall_contacts)),
-                stride,
+                Some(wall_springs),
             )
         }
-        None => (None, None, None, 1),
+        None => (None, None, None),
+    };
+    // Each chunk of particles reads and writes its own wall springs (`wall_history`).
+    let mut chunks: Vec<Option<&mut Chunk>> = match wall_springs.as_deref_mut() {
+        Some(springs) => springs.begin_pass(count).iter_mut().map(Some).collect(),
+        None => (0..count.div_ceil(PARTICLES_PER_CHUNK))
+            .map(|_| None)
+            .collect(),
     };
     let force_out: Scatter<'_, DVec3, PerParticle> = Scatter::new(&mut forces);
     let lost_out: Scatter<'_, f64, PerParticle> = Scatter::new(&mut dissipated);
@@ -506,7 +513,7 @@ fn particle_pass(
             Scatter::<_, PerParticle>::new(h.total_conductance),
         )
     });
-    let visit = |window: &Window<'_>| -> ForceSummary {
+    let visit = |springs: &mut Option<&mut Chunk>, window: &Window<'_>| -> ForceSummary {
         let k = window.owner();
         let mut max_overlap: f64 = 0.0;
         let mut force = state.mass[k] * model.gravity;
@@ -515,12 +522,9 @@ fn particle_pass(
         for w in 0..model.walls.len() {
             let overlap = wall_overlap(model, state, k, w);
             if overlap <= 0.0 {
-                if let Some(slots) = &walls {
-                    let held = slots.read(window, k * stride + w);
-                    if held != TangentialSpring::default() {
-                        lost += held.spring_energy;
-                        slots.update(window, k * stride + w, |s| *s = TangentialSpring::default());
-                    }
+                // The spring vanishes with the contact: what it held is lost.
+                if let Some(chunk) = springs.as_deref_mut() {
+                    lost += chunk.take(k, w).spring_energy;
                 }
                 continue;
             }
@@ -539,8 +543,8 @@ fn particle_pass(
             force += normal_force * into_domain;
             // (M.35): the wall's damper work over the step.
             lost += model.dt * (normal_force - elastic) * kinematics.overlap_rate;
-            if let (Some(slots), Some(omega), Some(tables)) =
-                (&walls, omega, model.friction.as_ref())
+            if let (Some(chunk), Some(omega), Some(tables)) =
+                (springs.as_deref_mut(), omega, model.friction.as_ref())
             {
                 // The particle is the first body, the wall the second: the normal points into
                 // the wall.
@@ -562,12 +566,12 @@ fn particle_pass(
                     model.dt,
                     &kinematics,
                     &contact,
-                    slots.read(window, k * stride + w),
+                    chunk.take(k, w),
                 );
                 force += step.force;
                 torque_k += arm * normal.cross(step.force) + step.rolling_torque;
                 lost += step.lost;
-                slots.update(window, k * stride + w, |s| *s = step.spring);
+                chunk.keep(k, w, step.spring);
             }
         }
         let mut total = DVec3::ZERO;
@@ -599,13 +603,18 @@ fn particle_pass(
         summary
     };
     let summary = scatter::for_each_particle(
-        state.len(),
+        count,
+        PARTICLES_PER_CHUNK,
+        &mut chunks,
         parallel,
-        |k| k * stride..(k + 1) * stride,
         ForceSummary::default(),
         visit,
         ForceSummary::merge,
     );
+    drop(chunks);
+    if let Some(springs) = wall_springs {
+        springs.end_pass();
+    }
     particles.force = forces;
     particles.dissipated = dissipated;
     summary

@@ -30,6 +30,7 @@ pub mod scene;
 pub mod simulation;
 pub mod study;
 pub mod thermal;
+pub mod wall_history;
 
 /// Below this many items a pass runs on the calling thread: handing a few hundred items to the
 /// rayon pool costs more (a wake-up and a wait, tens of µs) than computing them. Results are the

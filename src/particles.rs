@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 
-use crate::contact::tangential::TangentialSpring;
+use crate::wall_history::WallSprings;
 
 /// Everything needed to add one particle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -122,9 +122,8 @@ pub struct Rotation {
     pub torque: Vec<DVec3>,
     /// Number of walls.
     pub walls: usize,
-    /// Tangential history of every particle against every wall, `[k * wall_stride() + w]`: each particle
-    /// owns its own slots, so the wall pass needs no shared writes.
-    pub wall_contacts: Vec<TangentialSpring>,
+    /// Tangential springs of the particle-wall contacts that hold one (M.63).
+    pub wall_springs: WallSprings,
 }
 
 impl Rotation {
@@ -135,15 +134,8 @@ impl Rotation {
             angular_velocity: vec![DVec3::ZERO; particles],
             torque: vec![DVec3::ZERO; particles],
             walls,
-            wall_contacts: vec![TangentialSpring::default(); particles * walls.max(1)],
+            wall_springs: WallSprings::new(particles),
         }
-    }
-
-    /// Slots per particle in `wall_contacts`: the wall count, but at least 1, so that the
-    /// per-particle chunks exist even without walls.
-    #[must_use]
-    pub fn wall_stride(&self) -> usize {
-        self.walls.max(1)
     }
 
     /// Rotational kinetic energy `Σ ½ I ω²`, `I = (2/5) m r²` \[J\] (M.62), in index order.
@@ -161,7 +153,7 @@ impl Rotation {
     /// Stored energy of the wall springs \[J\] (M.63), in index order.
     #[must_use]
     pub fn wall_spring_energy(&self) -> f64 {
-        self.wall_contacts.iter().map(|c| c.spring_energy).sum()
+        self.wall_springs.spring_energy()
     }
 }
 
@@ -211,15 +203,9 @@ impl Particles {
 impl Rotation {
     /// Reorders the rotation state like [`Particles::select`].
     pub fn select(&mut self, order: &[u32]) {
+        let particles = self.angular_velocity.len();
         select(&mut self.angular_velocity, order);
         select(&mut self.torque, order);
-        let stride = self.wall_stride();
-        self.wall_contacts = order
-            .iter()
-            .flat_map(|&k| {
-                let start = k as usize * stride;
-                self.wall_contacts[start..start + stride].iter().copied()
-            })
-            .collect();
+        self.wall_springs.select(particles, order);
     }
 }

@@ -18,8 +18,7 @@ use std::ops::Range;
 /// Marker: an array indexed by particle.
 #[derive(Debug)]
 pub enum PerParticle {}
-/// Marker: an array indexed by slot (a pair slot of the neighbour list, or a particle's wall
-/// slot).
+/// Marker: an array indexed by pair slot of the neighbour list.
 #[derive(Debug)]
 pub enum PerSlot {}
 /// Marker: an array indexed by slab of the neighbour list; a pair visit may touch its owner's
@@ -62,15 +61,15 @@ impl<'a> Window<'a> {
         }
     }
 
-    /// The window of a per-particle visit: particle `k` and its slots.
+    /// The window of a per-particle visit: particle `k` alone, no slot.
     ///
     /// # Safety
     /// As for [`Window::pair`].
     #[must_use]
-    pub unsafe fn particle(k: usize, slots: Range<usize>) -> Self {
+    pub unsafe fn particle(k: usize) -> Self {
         Self {
             owner: k,
-            slots,
+            slots: 0..0,
             slab_of: &[],
             slabs: [u32::MAX; 2],
         }
@@ -209,36 +208,56 @@ impl<T> Scatter<'_, T, PerSlab> {
     }
 }
 
-/// Calls `visit` once for every particle `0..count`, with a window allowing that particle and its
-/// slots `slots(k)`, in parallel when `parallel`, and reduces the results with `merge`
-/// (associative and commutative, for the result not to depend on the thread count).
-pub fn for_each_particle<R, V, M>(
+/// Calls `visit(state, window)` once for every particle `0..count`, with a window allowing that
+/// particle alone. The particles go in chunks of `chunk_len` consecutive indices: a chunk's
+/// particles in ascending order with the chunk's own `states[c]` (so a visit may keep per-chunk
+/// data sorted by particle), the chunks in parallel when `parallel`. The results are reduced
+/// with `merge` (associative and commutative, for the result not to depend on the thread count).
+///
+/// # Panics
+/// If `states` does not hold one state per chunk.
+pub fn for_each_particle<S, R, V, M>(
     count: usize,
+    chunk_len: usize,
+    states: &mut [S],
     parallel: bool,
-    slots: impl Fn(usize) -> Range<usize> + Sync,
     identity: R,
     visit: V,
     merge: M,
 ) -> R
 where
+    S: Send,
     R: Clone + Send + Sync,
-    V: Fn(&Window<'_>) -> R + Sync,
+    V: Fn(&mut S, &Window<'_>) -> R + Sync,
     M: Fn(R, R) -> R + Sync + Send,
 {
     use rayon::prelude::*;
-    let one = |k: usize| {
-        // SAFETY: every particle (and its slots, disjoint by the caller's `slots`) is visited
-        // exactly once.
-        let window = unsafe { Window::particle(k, slots(k)) };
-        visit(&window)
+    assert_eq!(
+        states.len(),
+        count.div_ceil(chunk_len),
+        "one state per chunk"
+    );
+    let chunk = |(c, state): (usize, &mut S)| {
+        let mut partial = identity.clone();
+        for k in c * chunk_len..((c + 1) * chunk_len).min(count) {
+            // SAFETY: every particle is visited exactly once.
+            let window = unsafe { Window::particle(k) };
+            partial = merge(partial, visit(state, &window));
+        }
+        partial
     };
     if parallel {
-        (0..count)
-            .into_par_iter()
-            .map(one)
+        states
+            .par_iter_mut()
+            .enumerate()
+            .map(chunk)
             .reduce(|| identity.clone(), &merge)
     } else {
-        (0..count).map(one).fold(identity, merge)
+        states
+            .iter_mut()
+            .enumerate()
+            .map(chunk)
+            .fold(identity.clone(), &merge)
     }
 }
 
@@ -266,7 +285,7 @@ mod tests {
         let pools: Scatter<'_, Vec<u8>, PerSlab> = Scatter::new(&mut pools);
         pools.update_own(&window, |pool| pool.push(7));
         // SAFETY: single-threaded test.
-        let particle = unsafe { Window::particle(1, 0..0) };
+        let particle = unsafe { Window::particle(1) };
         assert!(std::panic::catch_unwind(|| pools.update_own(&particle, |_| ())).is_err());
         assert_eq!(pools.update_own(&window, |pool| pool.clone()), vec![7]);
     }

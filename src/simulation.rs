@@ -23,6 +23,7 @@ use crate::neighbor::{HeldPairs, NeighborList};
 use crate::pair_history::TangentialHistories;
 use crate::particles::{Particles, Rotation};
 use crate::thermal::{self, ThermalState};
+use crate::wall_history::WallSprings;
 
 /// A running simulation.
 #[derive(Debug, Clone)]
@@ -221,6 +222,18 @@ struct Contact<'a> {
     bonded: bool,
 }
 
+impl Contact<'_> {
+    /// Elastic energy of the normal law \[J\]: Hertz, or on the bonded branch the bond law's
+    /// (paper eq. 25).
+    fn elastic_energy(&self) -> f64 {
+        let (e_star, r_star) = (self.params.effective_modulus, self.effective_radius);
+        match (self.bonded, &self.params.bond) {
+            (true, Some(bond)) => bond.elastic_energy(e_star, r_star, self.overlap),
+            _ => hertz::elastic_energy(e_star, r_star, self.overlap),
+        }
+    }
+}
+
 /// The contact that limits the time step most (M.70).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StabilityLimit {
@@ -384,6 +397,13 @@ impl Simulation {
     }
 
     fn rotation_restart(&self, rotation: &Rotation) -> RotationRestart {
+        // The restart format keeps a slot per particle and wall, `[k * max(walls, 1) + w]`.
+        let stride = rotation.walls.max(1);
+        let mut dense_wall_springs =
+            vec![TangentialSpring::default(); rotation.angular_velocity.len() * stride];
+        for (k, w, spring) in rotation.wall_springs.entries() {
+            dense_wall_springs[k * stride + w] = spring;
+        }
         // Saved by id key, oriented from the lower id to the higher (slots are oriented owner →
         // partner, and the owner depends on the storage order).
         let held: Vec<((u64, u64), TangentialSpring)> = self
@@ -397,12 +417,8 @@ impl Simulation {
         RotationRestart {
             angular_velocity: rotation.angular_velocity.clone(),
             torque: rotation.torque.clone(),
-            wall_history: rotation.wall_contacts.iter().map(|c| c.history).collect(),
-            wall_spring_energy: rotation
-                .wall_contacts
-                .iter()
-                .map(|c| c.spring_energy)
-                .collect(),
+            wall_history: dense_wall_springs.iter().map(|c| c.history).collect(),
+            wall_spring_energy: dense_wall_springs.iter().map(|c| c.spring_energy).collect(),
             pair_ids: held.iter().map(|(key, _)| *key).collect(),
             pair_history: held.iter().map(|(_, t)| t.history).collect(),
             pair_spring_energy: held.iter().map(|(_, t)| t.spring_energy).collect(),
@@ -427,10 +443,11 @@ impl Simulation {
             ),
             (Some(_), Some(saved)) => {
                 let mut rotation = Rotation::new(n, model.walls.len());
+                let stride = model.walls.len().max(1);
                 if saved.angular_velocity.len() != n
                     || saved.torque.len() != n
-                    || saved.wall_history.len() != rotation.wall_contacts.len()
-                    || saved.wall_spring_energy.len() != rotation.wall_contacts.len()
+                    || saved.wall_history.len() != n * stride
+                    || saved.wall_spring_energy.len() != n * stride
                 {
                     return Err(format!(
                         "restart data has {} angular velocities and {} wall histories for {n} particles and {} walls",
@@ -441,14 +458,19 @@ impl Simulation {
                 }
                 rotation.angular_velocity.clone_from(&saved.angular_velocity);
                 rotation.torque.clone_from(&saved.torque);
-                for (slot, (history, energy)) in rotation
-                    .wall_contacts
-                    .iter_mut()
-                    .zip(saved.wall_history.iter().zip(&saved.wall_spring_energy))
-                {
-                    slot.history = *history;
-                    slot.spring_energy = *energy;
-                }
+                let springs = saved
+                    .wall_history
+                    .iter()
+                    .zip(&saved.wall_spring_energy)
+                    .enumerate()
+                    .map(|(slot, (history, energy))| {
+                        let spring = TangentialSpring {
+                            history: *history,
+                            spring_energy: *energy,
+                        };
+                        (slot / stride, slot % stride, spring)
+                    });
+                rotation.wall_springs = WallSprings::from_entries(n, springs);
                 Ok(Some(rotation))
             }
         }
@@ -748,7 +770,7 @@ impl Simulation {
     fn clear_tangential_history(&mut self) {
         if let Some(rotation) = &mut self.rotation {
             self.tangential.clear();
-            rotation.wall_contacts.fill(TangentialSpring::default());
+            rotation.wall_springs.clear();
         }
     }
 
@@ -881,14 +903,10 @@ impl Simulation {
             d.max_overlap_ratio = d
                 .max_overlap_ratio
                 .max(contact.overlap / contact.smaller_radius);
-            let (e_star, r_star) = (contact.params.effective_modulus, contact.effective_radius);
-            d.elastic_energy += match (contact.bonded, &contact.params.bond) {
-                (true, Some(bond)) => {
-                    d.bonds += 1;
-                    bond.elastic_energy(e_star, r_star, contact.overlap)
-                }
-                _ => hertz::elastic_energy(e_star, r_star, contact.overlap),
-            };
+            if contact.bonded && contact.params.bond.is_some() {
+                d.bonds += 1;
+            }
+            d.elastic_energy += contact.elastic_energy();
             tightest = tightest.min(self.stability_limit_of(&contact));
         });
         if let Some(rotation) = &self.rotation {
