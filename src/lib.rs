@@ -19,6 +19,7 @@ pub mod contact;
 pub mod forces;
 pub mod integrate;
 pub mod laser;
+pub mod memory;
 pub mod model;
 pub mod neighbor;
 pub mod output;

@@ -670,6 +670,7 @@ impl Simulation {
         }
         // The pools' write buffers are scratch between passes: gone before the held copies.
         self.tangential.drop_spare_buffers();
+        crate::memory::return_free_pages();
         let (states, tangential, list) = (&self.bond_states, &self.tangential, &self.neighbors);
         let ids = &self.particles.id;
         let bonds = list.held_pairs(ids, |p, _| {
@@ -685,6 +686,7 @@ impl Simulation {
         if let Some(t) = &mut self.thermal {
             t.conductance = Vec::new();
         }
+        crate::memory::return_free_pages();
         let order =
             self.neighbors
                 .spatial_order(&self.particles.position, &self.particles.radius, &keep);
