@@ -65,7 +65,8 @@ pub struct Simulation {
 pub struct Removed {
     /// Particles removed.
     pub particles: u64,
-    /// Their kinetic (with rotational) and gravitational energy when removed.
+    /// Their kinetic (with rotational) and gravitational energy when removed, with the elastic
+    /// energy of the contacts they still had (M.78).
     pub mechanical_energy: f64,
     /// The energy they had lost to damping and friction.
     pub dissipated_energy: f64,
@@ -350,6 +351,33 @@ impl Simulation {
                 removed.laser_energy += t.laser_energy[k];
                 removed.boundary_energy += t.boundary_energy[k];
             }
+        }
+        if keep.iter().all(|k| *k) {
+            return keep;
+        }
+        // The contacts of a removed particle end with it: their elastic energy (normal law and
+        // tangential springs) leaves the mechanical energy too, and is booked with it.
+        let mut elastic = 0.0;
+        self.for_each_contact(|c| {
+            if !keep[c.first] || c.second.is_some_and(|b| !keep[b]) {
+                elastic += c.elastic_energy();
+            }
+        });
+        self.removed.mechanical_energy += elastic;
+        if let Some(rotation) = &self.rotation {
+            let list = &self.neighbors;
+            let springs: f64 = rotation
+                .wall_springs
+                .entries()
+                .filter(|&(k, ..)| !keep[k])
+                .map(|(.., s)| s.spring_energy)
+                .chain(
+                    list.pairs()
+                        .filter(|&(_, a, b)| !keep[a] || !keep[b])
+                        .map(|(slot, a, _)| self.tangential.get(list, slot, a).spring_energy),
+                )
+                .sum();
+            self.removed.mechanical_energy += springs;
         }
         keep
     }
