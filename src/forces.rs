@@ -193,12 +193,13 @@ fn tangential_step(
 
 /// The force pass (steps 4-5 of the step order): every particle's force, with rotation its
 /// torque, with `[thermal]` its first-substep heat flows and every slot's conductance; bond states
-/// and tangential histories advance by one step. Returns what the per-step guards need.
+/// (`states`, per slot, given when the scene has a bond law) and tangential histories advance by
+/// one step. Returns what the per-step guards need.
 pub fn compute(
     model: &Model,
     particles: &mut Particles,
     list: &NeighborList,
-    states: &mut [BondState],
+    states: Option<&mut [BondState]>,
     rotation: Option<PassRotation<'_>>,
     mut heat: Option<PassHeat<'_>>,
 ) -> ForceSummary {
@@ -240,7 +241,7 @@ pub fn compute(
         let targets = PairTargets {
             force: Scatter::new(&mut forces),
             lost: Scatter::new(&mut dissipated),
-            states: Scatter::new(states),
+            states: states.map(Scatter::new),
             torque,
             tangential: histories.as_mut().map(|h| h.start_pass()),
             heat,
@@ -275,7 +276,8 @@ fn fill<T: Copy + Send + Sync>(values: &mut [T], value: T, parallel: bool) {
 struct PairTargets<'a> {
     force: Scatter<'a, DVec3, PerParticle>,
     lost: Scatter<'a, f64, PerParticle>,
-    states: Scatter<'a, BondState, PerSlot>,
+    /// Per slot, with a bond law in the scene.
+    states: Option<Scatter<'a, BondState, PerSlot>>,
     torque: Option<Scatter<'a, DVec3, PerParticle>>,
     tangential: Option<HistoryTargets<'a>>,
     heat: Option<HeatTargets<'a>>,
@@ -323,10 +325,10 @@ fn owner_pairs(
         if distance_squared >= reach * reach {
             // Most candidate pairs are apart: no square root, no division, and no write unless
             // the slot still holds something from an earlier contact.
-            if targets.states.read(window, p) != BondState::Unbonded {
-                targets
-                    .states
-                    .update(window, p, |s| *s = BondState::Unbonded);
+            if let Some(states) = &targets.states {
+                if states.read(window, p) != BondState::Unbonded {
+                    states.update(window, p, |s| *s = BondState::Unbonded);
+                }
             }
             if let Some(histories) = &targets.tangential {
                 // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is
@@ -365,7 +367,10 @@ fn owner_pairs(
             .as_ref()
             .map_or((false, false), |h| (h.melted[a], h.melted[b]));
         let criterion = model.bond_criterion.holds(melted.0, melted.1);
-        let state = targets.states.read(window, p);
+        let state = targets
+            .states
+            .as_ref()
+            .map_or(BondState::Unbonded, |states| states.read(window, p));
         let outcome = contact::normal_force(params, &kinematics, state, criterion);
         // (M.35): damper work over the step, at the half-step velocity the force used.
         let mut lost = model.dt * (outcome.force - outcome.elastic) * kinematics.overlap_rate;
@@ -381,7 +386,9 @@ fn owner_pairs(
                     BondState::Unbonded => bond_energy - hertz_energy,
                 };
             }
-            targets.states.update(window, p, |s| *s = outcome.state);
+            if let Some(states) = &targets.states {
+                states.update(window, p, |s| *s = outcome.state);
+            }
         }
         let mut force_on_a = -outcome.force * normal;
         if let (Some(histories), Some(omega), Some(tables)) =

@@ -33,7 +33,8 @@ pub struct Simulation {
     /// Particle state.
     pub particles: Particles,
     neighbors: NeighborList,
-    /// Per pair slot of the neighbour list: the bond state, carried over rebuilds by ids.
+    /// Per pair slot of the neighbour list: the bond state, carried over rebuilds by ids; empty
+    /// without a bond law (see `slot_bond_state`).
     bond_states: Vec<BondState>,
     /// Temperatures and heat bookkeeping, if the scene has `[thermal]` (otherwise nothing is
     /// allocated and no thermal pass runs).
@@ -590,6 +591,12 @@ impl Simulation {
         };
         sim.neighbors.build(&reference, &sim.particles.radius);
         sim.carry_pairs(&HeldPairs::default(), &HeldPairs::default());
+        if !state.bonded.is_empty() && !sim.model.has_bonds() {
+            return Err(format!(
+                "the restart data has {} bonds but the scene has no bond law ([bond])",
+                state.bonded.len()
+            ));
+        }
         let bonded: std::collections::HashSet<(u64, u64)> = state.bonded.into_iter().collect();
         let held: std::collections::HashMap<(u64, u64), TangentialSpring> = state
             .rotation
@@ -612,6 +619,7 @@ impl Simulation {
         let keys: Vec<_> = sim.pair_keys().collect();
         for (p, owner, key, owner_is_lower) in keys {
             if bonded.contains(&key) {
+                // (Only with a bond law: a restart with bonds is refused without one, above.)
                 sim.bond_states[p] = BondState::Bonded;
             }
             if let Some(t) = held.get(&key) {
@@ -622,6 +630,12 @@ impl Simulation {
         sim.update_conductances();
         sim.mark_start();
         Ok(sim)
+    }
+
+    /// The bond state of pair slot `slot` (always unbonded without a bond law, where no state is
+    /// stored).
+    fn slot_bond_state(&self, slot: usize) -> BondState {
+        self.bond_states.get(slot).copied().unwrap_or_default()
     }
 
     /// Every pair slot as `(slot, owner, (id_lo, id_hi), whether the owner has the lower id)`.
@@ -649,7 +663,7 @@ impl Simulation {
     pub fn bonded_pairs(&self) -> Vec<(usize, usize, f64, f64)> {
         let p = &self.particles;
         self.touching_pairs()
-            .filter(|(slot, ..)| self.bond_states[*slot] == BondState::Bonded)
+            .filter(|(slot, ..)| self.slot_bond_state(*slot) == BondState::Bonded)
             .map(|(_, a, b, normal, overlap)| {
                 let kinematics = crate::contact::PairKinematics {
                     overlap,
@@ -702,7 +716,10 @@ impl Simulation {
         let (states, tangential, list) = (&self.bond_states, &self.tangential, &self.neighbors);
         let ids = &self.particles.id;
         let bonds = list.held_pairs(ids, |p, _| {
-            (states[p] != BondState::Unbonded).then_some(states[p])
+            states
+                .get(p)
+                .copied()
+                .filter(|state| *state != BondState::Unbonded)
         });
         let springs = list.held_pairs(ids, |p, owner| {
             let spring = tangential.get(list, p, owner);
@@ -739,7 +756,9 @@ impl Simulation {
     /// The pair data of the rebuilt list, from the bonds and springs held before the rebuild.
     fn carry_pairs(&mut self, bonds: &HeldPairs<BondState>, springs: &HeldPairs<TangentialSpring>) {
         let ids = &self.particles.id;
-        self.bond_states = self.neighbors.carry(ids, bonds, |state, _| *state);
+        if self.model.has_bonds() {
+            self.bond_states = self.neighbors.carry(ids, bonds, |state, _| *state);
+        }
         if self.rotation.is_some() {
             self.tangential =
                 TangentialHistories::carry(&self.neighbors, ids, springs, |t, turned| {
@@ -785,7 +804,9 @@ impl Simulation {
             &self.model,
             &mut self.particles,
             &self.neighbors,
-            &mut self.bond_states,
+            self.model
+                .has_bonds()
+                .then_some(self.bond_states.as_mut_slice()),
             self.rotation.as_mut().map(|rotation| forces::PassRotation {
                 rotation,
                 histories: &mut self.tangential,
@@ -893,7 +914,7 @@ impl Simulation {
         let key = (a.min(b), a.max(b));
         self.pair_keys()
             .find(|(_, _, k, _)| *k == key)
-            .map_or(BondState::Unbonded, |(p, ..)| self.bond_states[p])
+            .map_or(BondState::Unbonded, |(p, ..)| self.slot_bond_state(p))
     }
 
     /// Bonded pairs as `(id_lo, id_hi)`, sorted.
@@ -901,7 +922,7 @@ impl Simulation {
     pub fn bonds(&self) -> Vec<(u64, u64)> {
         let mut bonds: Vec<(u64, u64)> = self
             .pair_keys()
-            .filter(|(p, ..)| self.bond_states[*p] == BondState::Bonded)
+            .filter(|(p, ..)| self.slot_bond_state(*p) == BondState::Bonded)
             .map(|(_, _, key, _)| key)
             .collect();
         bonds.sort_unstable();
@@ -1146,7 +1167,7 @@ impl Simulation {
                 effective_radius: hertz::effective_radius(p.radius[a], p.radius[b]),
                 effective_mass: hertz::effective_mass(p.mass[a], p.mass[b]),
                 params: self.model.pair_params(p.material[a], p.material[b]),
-                bonded: self.bond_states[slot] == BondState::Bonded,
+                bonded: self.slot_bond_state(slot) == BondState::Bonded,
             });
         }
         for k in 0..p.len() {

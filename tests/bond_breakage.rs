@@ -103,3 +103,37 @@ fn the_breaking_speed_is_the_escape_speed_of_the_bond_potential() {
         "measured {measured}, energy balance {v}"
     );
 }
+
+/// A scene without a bond law stores no bond state, so a restart that holds bonds cannot be
+/// resumed with it: the run refuses, naming the bonds, instead of dropping them silently.
+#[test]
+fn a_restart_with_bonds_is_refused_by_a_scene_without_a_bond_law() {
+    use am_sim::model::Model;
+    use am_sim::scene::Scene;
+    use am_sim::simulation::Simulation;
+    let distance = 2.0 * RADIUS - 5e-5;
+    let bonded = two_spheres_at(
+        DENSITY,
+        distance,
+        0.0,
+        0.0,
+        Some(undamped_bond()),
+        1e-7,
+        1e-6,
+    );
+    assert_eq!(
+        bonded.bonds(),
+        vec![(0, 1)],
+        "bonded at δ_eq from the start"
+    );
+    let text =
+        am_sim::study::scenes::two_spheres_text(DENSITY, distance, 0.0, 0.0, None, 1e-7, 1e-6);
+    let (model, particles) = Model::try_build(&Scene::from_toml(&text).unwrap()).unwrap();
+    let Err(error) = Simulation::resume(model, particles, bonded.restart_state()) else {
+        panic!("a restart with a bond was resumed without a bond law");
+    };
+    assert!(
+        error.contains("1 bonds") && error.contains("[bond]"),
+        "{error}"
+    );
+}
