@@ -135,7 +135,7 @@ struct TangentialStep {
 
 /// Tangential spring (M.57–M.59) and rolling resistance (M.61) of one contact over one step,
 /// and the energy they took (M.63): `−F_t·v_t dt − ΔU_t + (−M_r·ω_rel) dt`.
-#[inline]
+#[inline(always)]
 fn tangential_step(
     params: &FrictionParams,
     damping_ratio: f64,
