@@ -209,3 +209,72 @@ fn a_removed_particle_takes_its_contact_energy_with_it() {
         "total energy jumped by {jump} J at the removal (bound {bound} J)"
     );
 }
+
+/// Sphere A held against a side wall by gravity along −x, sphere B pressed onto A and sliding
+/// along y over it at 3 m/s, out of the domain 0.3 mm away: the A–B contact, with a spring at the
+/// Coulomb limit, ends with B.
+const PAIR_SLIDER: &str = r#"
+[scene]
+version = 1
+[simulation]
+dt_s = 1e-6
+duration_s = 4e-3
+gravity_m_s2 = [-1.0e4, 0.0, 0.0]
+skin_m = 1e-4
+[materials.m]
+density_kg_m3 = 2000
+youngs_modulus_pa = 1e7
+poisson_ratio = 0.3
+[contact]
+model = "hertz"
+damping_ratio = 0.3
+friction_coefficient = 0.5
+[domain]
+min_corner_m = [-1.0e-3, -1.0e-2, -1.0e-2]
+max_corner_m = [1.0e-2, 3.0e-4, 1.0e-2]
+[[particles]]
+position_m = [0.95e-3, 0.0, 0.0]
+velocity_m_s = [0.0, 0.0, 0.0]
+radius_m = 1e-3
+material = "m"
+[[particles]]
+position_m = [2.9e-3, 0.0, 0.0]
+velocity_m_s = [0.0, 3.0, 0.0]
+radius_m = 1e-3
+material = "m"
+[[walls]]
+point_m = [0.0, 0.0, 0.0]
+normal = [1.0, 0.0, 0.0]
+material = "m"
+"#;
+
+#[test]
+fn a_removed_particle_takes_its_pair_contact_energy_with_it() {
+    let mut sim = common::simulation(PAIR_SLIDER);
+    let total = |sim: &Simulation| {
+        let d = sim.diagnostics();
+        d.mechanical_energy() + d.dissipated_energy + sim.removed.mechanical_energy
+    };
+    let b = sim.particles.index_of(1).unwrap();
+    let mass = sim.particles.mass[b];
+    let (mut before, mut speed, mut pair_contacts) = (0.0, 0.0, 0);
+    while sim.removed.particles == 0 {
+        assert!(sim.step < sim.model.steps, "sphere B never left");
+        let b = sim.particles.index_of(1).unwrap();
+        speed = sim.particles.velocity[b].length();
+        pair_contacts = sim.diagnostics().contacts;
+        before = total(&sim);
+        sim.step();
+    }
+    let jump = total(&sim) - before;
+    assert_eq!(pair_contacts, 1, "B leaves while touching A");
+    // Measured: the A–B spring holds 1.9e-7 J and its Hertz term 6.7e-7 J; left out, either one
+    // breaks the bound below. As for the wall contact, the half-step kinetic mismatch of the
+    // removed sphere bounds what remains (a = μ g of sliding friction, along v; measured 2.9e-8
+    // J).
+    let bound = 0.5 * mass * speed * 0.5 * 1.0e4 * sim.model.dt;
+    assert!(
+        jump.abs() < bound,
+        "total energy jumped by {jump} J at the removal (bound {bound} J)"
+    );
+}
