@@ -6,11 +6,21 @@
 # test that builds every shipped scene does not insert a million spheres).
 #
 # usage: benches/memory.sh [THREADS]     (default 2; needs /usr/bin/time: apt-get install time)
+#   NO_HDF5=1 benches/memory.sh   measures a build without the HDF5 output (--no-default-features,
+#   in target/no-hdf5): the same runs without the ~6 MiB of file pages that Debian's libhdf5 and
+#   the libraries it pulls in (libcurl, libcrypto, gnutls, ...) map; these scenes write no file.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 THREADS=${1:-2}
 command -v /usr/bin/time >/dev/null || { echo "/usr/bin/time not found: apt-get install -y time" >&2; exit 1; }
-cargo build --release --quiet
+if [[ "${NO_HDF5:-0}" == 1 ]]; then
+  export CARGO_TARGET_DIR=target/no-hdf5
+  cargo build --release --quiet --no-default-features
+else
+  export CARGO_TARGET_DIR=target
+  cargo build --release --quiet
+fi
+BINARY="$CARGO_TARGET_DIR/release/am-sim"
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 cat > "$WORK/bed_1m.toml" <<'TOML'
@@ -48,7 +58,7 @@ x_m = [0.0, 1.07e-2]
 y_m = [0.0, 1.07e-2]
 TOML
 for scene in scenes/liggghts_bed_20k.toml scenes/liggghts_bed_100k.toml "$WORK/bed_1m.toml"; do
-  /usr/bin/time -v target/release/am-sim "$scene" --threads "$THREADS" --overwrite > "$WORK/out.txt" 2> "$WORK/time.txt"
+  /usr/bin/time -v "$BINARY" "$scene" --threads "$THREADS" --overwrite > "$WORK/out.txt" 2> "$WORK/time.txt"
   n=$(grep -oE '— [0-9]+ particles' "$WORK/out.txt" | grep -oE '[0-9]+' | head -1)
   kb=$(awk '/Maximum resident set size/{print $6}' "$WORK/time.txt")
   speed=$(awk '/particle-steps\/s/{print $2}' "$WORK/out.txt")
