@@ -6,7 +6,7 @@ mod common;
 
 use am_sim::model::Model;
 use am_sim::scene::Scene;
-use am_sim::simulation::Simulation;
+use am_sim::simulation::{Diagnostics, Simulation};
 
 /// A small frictional, thermal bed on a plate (4 × 4 spheres touching, r = 1 mm) and one sphere
 /// shot upwards at 20 m/s out of the 10 mm high domain; the bed cools by convection.
@@ -171,35 +171,65 @@ normal = [0.0, 0.0, 1.0]
 material = "m"
 "#;
 
-#[test]
-fn a_removed_particle_takes_its_contact_energy_with_it() {
-    let mut sim = common::simulation(SLIDER);
-    // Mechanical energy, with what removed particles took, plus what was lost [J]: constant up
-    // to the integrator's error (here ~1e-12 J a step).
-    let total = |sim: &Simulation| {
-        let d = sim.diagnostics();
+/// What the step that removes a sliding sphere does to the energy balance.
+struct Removal {
+    /// Diagnostics of the last state before the removal.
+    last: Diagnostics,
+    /// The wall springs' energy then \[J\].
+    wall_springs: f64,
+    /// Change of the total energy (mechanical, with what removed particles took, plus what was
+    /// lost) over the removal step \[J\]: constant up to the integrator's error (here ~1e-12 J a
+    /// step) when everything the sphere takes is booked.
+    jump: f64,
+    /// What remains when it is: the kinetic energy booked at the half-step velocity (the removed
+    /// sphere gets no second kick), at most m |v| |a| dt / 2 with a = μ g of sliding friction
+    /// along v (μ = 0.5, g = 1e4 m/s² in both scenes) \[J\].
+    bound: f64,
+}
+
+/// Runs `scene` until the sphere with id `leaver` slides out of the domain.
+fn slide_out(scene: &str, leaver: u64) -> Removal {
+    const SLIDING_DECELERATION: f64 = 0.5 * 1.0e4;
+    let mut sim = common::simulation(scene);
+    let total = |d: &Diagnostics, sim: &Simulation| {
         d.mechanical_energy() + d.dissipated_energy + sim.removed.mechanical_energy
     };
-    let mut before = total(&sim);
-    let mass = sim.particles.mass[0];
-    let (mut elastic, mut spring, mut speed) = (0.0, 0.0, 0.0);
+    let (mut last, mut before, mut wall_springs, mut kinetic_bound) =
+        (Diagnostics::default(), 0.0, 0.0, 0.0);
     while sim.removed.particles == 0 {
-        assert!(sim.step < sim.model.steps, "the slider never left");
-        let d = sim.diagnostics();
-        spring = sim.rotation.as_ref().unwrap().wall_spring_energy();
-        elastic = d.elastic_energy;
-        speed = sim.particles.velocity[0].length();
-        before = total(&sim);
+        assert!(sim.step < sim.model.steps, "sphere {leaver} never left");
+        let k = sim.particles.index_of(leaver).unwrap();
+        last = sim.diagnostics();
+        before = total(&last, &sim);
+        wall_springs = sim.rotation.as_ref().unwrap().wall_spring_energy();
+        kinetic_bound = 0.5
+            * sim.particles.mass[k]
+            * sim.particles.velocity[k].length()
+            * SLIDING_DECELERATION
+            * sim.model.dt;
         sim.step();
     }
-    let jump = total(&sim) - before;
+    assert!(
+        !sim.particles.id.contains(&leaver),
+        "the removed sphere is the slider"
+    );
+    Removal {
+        last,
+        wall_springs,
+        jump: total(&sim.diagnostics(), &sim) - before,
+        bound: kinetic_bound,
+    }
+}
+
+#[test]
+fn a_removed_particle_takes_its_contact_energy_with_it() {
+    let removal = slide_out(SLIDER, 0);
+    let (spring, elastic) = (removal.wall_springs, removal.last.elastic_energy);
     // Sliding at the Coulomb limit, the wall spring holds (μ F_n)² / (2 k_t) (measured 4.4e-7 J)
     // beside the Hertz energy of the plate contact: left out, the total would drop by
     // `elastic` ≥ `spring` at the removal.
     assert!(spring > 1e-7 && elastic > spring, "{spring} {elastic}");
-    // Booked, what remains is the kinetic energy booked at the half-step velocity (the removed
-    // sphere gets no second kick): at most m |v| |a| dt / 2 with a = μ g of sliding friction.
-    let bound = 0.5 * mass * speed * 0.5 * 1.0e4 * sim.model.dt;
+    let (jump, bound) = (removal.jump, removal.bound);
     assert!(
         bound < 0.2 * spring,
         "the test could not tell: bound {bound} J"
@@ -250,29 +280,11 @@ material = "m"
 
 #[test]
 fn a_removed_particle_takes_its_pair_contact_energy_with_it() {
-    let mut sim = common::simulation(PAIR_SLIDER);
-    let total = |sim: &Simulation| {
-        let d = sim.diagnostics();
-        d.mechanical_energy() + d.dissipated_energy + sim.removed.mechanical_energy
-    };
-    let b = sim.particles.index_of(1).unwrap();
-    let mass = sim.particles.mass[b];
-    let (mut before, mut speed, mut pair_contacts) = (0.0, 0.0, 0);
-    while sim.removed.particles == 0 {
-        assert!(sim.step < sim.model.steps, "sphere B never left");
-        let b = sim.particles.index_of(1).unwrap();
-        speed = sim.particles.velocity[b].length();
-        pair_contacts = sim.diagnostics().contacts;
-        before = total(&sim);
-        sim.step();
-    }
-    let jump = total(&sim) - before;
-    assert_eq!(pair_contacts, 1, "B leaves while touching A");
+    let removal = slide_out(PAIR_SLIDER, 1);
+    assert_eq!(removal.last.contacts, 1, "B leaves while touching A");
     // Measured: the A–B spring holds 1.9e-7 J and its Hertz term 6.7e-7 J; left out, either one
-    // breaks the bound below. As for the wall contact, the half-step kinetic mismatch of the
-    // removed sphere bounds what remains (a = μ g of sliding friction, along v; measured 2.9e-8
-    // J).
-    let bound = 0.5 * mass * speed * 0.5 * 1.0e4 * sim.model.dt;
+    // breaks the bound below (what remains measured 2.9e-8 J).
+    let (jump, bound) = (removal.jump, removal.bound);
     assert!(
         jump.abs() < bound,
         "total energy jumped by {jump} J at the removal (bound {bound} J)"
