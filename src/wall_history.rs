@@ -159,18 +159,6 @@ impl WallSprings {
             .map_or(TangentialSpring::default(), |i| held[i].spring)
     }
 
-    /// Number of non-zero springs.
-    #[must_use]
-    pub fn len(&self) -> usize {
-        self.chunks.iter().map(|c| c.held.len()).sum()
-    }
-
-    /// True without any spring.
-    #[must_use]
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
     /// Stored energy of the springs \[J\] (M.63), by particle then wall.
     #[must_use]
     pub fn spring_energy(&self) -> f64 {
