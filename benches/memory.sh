@@ -7,8 +7,8 @@
 #
 # usage: benches/memory.sh [THREADS]     (default 2; needs /usr/bin/time: apt-get install time)
 #   NO_HDF5=1 benches/memory.sh   measures a build without the HDF5 output (--no-default-features,
-#   in target/no-hdf5): the same runs without the ~6 MiB of file pages that Debian's libhdf5 and
-#   the libraries it pulls in (libcurl, libcrypto, gnutls, ...) map; these scenes write no file.
+#   in target/no-hdf5): these scenes write no file, so the difference is the resident pages of
+#   the statically linked HDF5 code.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 THREADS=${1:-2}
