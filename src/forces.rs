@@ -249,7 +249,7 @@ pub fn compute(
         let summary = list.for_each_owner(
             parallel,
             ForceSummary::default(),
-            |summary, window| owner_pairs(model, state, list, omega, &targets, summary, window),
+            |summary, window| owner_pairs(model, state, omega, &targets, summary, window),
             ForceSummary::merge,
         );
         if let Some(h) = histories {
@@ -299,14 +299,17 @@ struct HeatTargets<'a> {
 fn owner_pairs(
     model: &Model,
     particles: &Particles,
-    list: &NeighborList,
     omega: Option<&[DVec3]>,
     targets: &PairTargets<'_>,
     summary: &mut ForceSummary,
     window: &Window<'_>,
 ) {
-    let a = window.owner();
-    let periodic = model.periodic.as_ref();
+    let owner = window.owner();
+    let a = owner.index();
+    let periodic = model
+        .periodic
+        .as_ref()
+        .filter(|_| window.needs_minimum_image());
     let (v_a, r_a, m_a) = (
         particles.velocity[a],
         particles.radius[a],
@@ -315,9 +318,8 @@ fn owner_pairs(
     let material_a = particles.material[a];
     let (mut force_a, mut lost_a, mut torque_a) = (DVec3::ZERO, 0.0, DVec3::ZERO);
     let (mut heat_a, mut conductance_a) = (0.0, 0.0);
-    let partners = list.partners();
-    for p in window.slots() {
-        let b = partners[p] as usize;
+    for (p, partner) in window.pairs() {
+        let b = partner.index();
         let separation = pair_separation(periodic, particles, a, b);
         let r_b = particles.radius[b];
         let reach = r_a + r_b;
@@ -326,8 +328,8 @@ fn owner_pairs(
             // Most candidate pairs are apart: no square root, no division, and no write unless
             // the slot still holds something from an earlier contact.
             if let Some(states) = &targets.states {
-                if states.read(window, p) != BondState::Unbonded {
-                    states.update(window, p, |s| *s = BondState::Unbonded);
+                if states.read(p) != BondState::Unbonded {
+                    states.update(p, |s| *s = BondState::Unbonded);
                 }
             }
             if let Some(histories) = &targets.tangential {
@@ -338,16 +340,22 @@ fn owner_pairs(
                     lost_a += 0.5 * held.spring_energy;
                     targets
                         .lost
-                        .update(window, b, |l| *l += 0.5 * held.spring_energy);
+                        .update(partner, |l| *l += 0.5 * held.spring_energy);
                 }
             }
             if let Some(h) = &targets.heat {
-                if h.conductance.read(window, p) != 0.0 {
-                    h.conductance.update(window, p, |c| *c = 0.0);
+                if h.conductance.read(p) != 0.0 {
+                    h.conductance.update(p, |c| *c = 0.0);
                 }
             }
             continue;
         }
+        debug_assert!(
+            model
+                .periodic
+                .is_none_or(|p| p.minimum_image(separation) == separation),
+            "a touching pair of owner {a} across a periodic face, which the list did not flag"
+        );
         let distance = distance_squared.sqrt();
         let normal = unit_normal(separation, distance);
         let overlap = reach - distance;
@@ -370,7 +378,7 @@ fn owner_pairs(
         let state = targets
             .states
             .as_ref()
-            .map_or(BondState::Unbonded, |states| states.read(window, p));
+            .map_or(BondState::Unbonded, |states| states.read(p));
         let outcome = contact::normal_force(params, &kinematics, state, criterion);
         // (M.35): damper work over the step, at the half-step velocity the force used.
         let mut lost = model.dt * (outcome.force - outcome.elastic) * kinematics.overlap_rate;
@@ -387,7 +395,7 @@ fn owner_pairs(
                 };
             }
             if let Some(states) = &targets.states {
-                states.update(window, p, |s| *s = outcome.state);
+                states.update(p, |s| *s = outcome.state);
             }
         }
         let mut force_on_a = -outcome.force * normal;
@@ -427,14 +435,14 @@ fn owner_pairs(
             let lever = normal.cross(step.force);
             torque_a += arm_a * lever + step.rolling_torque;
             if let Some(torque) = &targets.torque {
-                torque.update(window, b, |t| *t += arm_b * lever - step.rolling_torque);
+                torque.update(partner, |t| *t += arm_b * lever - step.rolling_torque);
             }
         }
         force_a += force_on_a;
         lost_a += 0.5 * lost;
         {
-            targets.force.update(window, b, |f| *f -= force_on_a);
-            targets.lost.update(window, b, |l| *l += 0.5 * lost);
+            targets.force.update(partner, |f| *f -= force_on_a);
+            targets.lost.update(partner, |l| *l += 0.5 * lost);
         }
         if let Some(h) = &targets.heat {
             let conductance = thermal::pair_conductance(
@@ -449,22 +457,21 @@ fn owner_pairs(
             heat_a += flow;
             conductance_a += conductance;
             {
-                h.conductance.update(window, p, |c| *c = conductance);
-                h.heat_flow.update(window, b, |q| *q -= flow);
-                h.total_conductance.update(window, b, |g| *g += conductance);
+                h.conductance.update(p, |c| *c = conductance);
+                h.heat_flow.update(partner, |q| *q -= flow);
+                h.total_conductance.update(partner, |g| *g += conductance);
             }
         }
     }
     {
-        targets.force.update(window, a, |f| *f += force_a);
-        targets.lost.update(window, a, |l| *l += lost_a);
+        targets.force.update(owner, |f| *f += force_a);
+        targets.lost.update(owner, |l| *l += lost_a);
         if let Some(torque) = &targets.torque {
-            torque.update(window, a, |t| *t += torque_a);
+            torque.update(owner, |t| *t += torque_a);
         }
         if let Some(h) = &targets.heat {
-            h.heat_flow.update(window, a, |q| *q += heat_a);
-            h.total_conductance
-                .update(window, a, |g| *g += conductance_a);
+            h.heat_flow.update(owner, |q| *q += heat_a);
+            h.total_conductance.update(owner, |g| *g += conductance_a);
         }
     }
 }
@@ -521,7 +528,8 @@ fn particle_pass(
         )
     });
     let visit = |springs: &mut Option<&mut Chunk>, window: &Window<'_>| -> ForceSummary {
-        let k = window.owner();
+        let particle = window.owner();
+        let k = particle.index();
         let mut max_overlap: f64 = 0.0;
         let mut force = state.mass[k] * model.gravity;
         let mut torque_k = DVec3::ZERO;
@@ -582,23 +590,23 @@ fn particle_pass(
             }
         }
         let mut total = DVec3::ZERO;
-        force_out.update(window, k, |f| {
+        force_out.update(particle, |f| {
             *f += force;
             total = *f;
         });
-        lost_out.update(window, k, |l| *l += lost);
+        lost_out.update(particle, |l| *l += lost);
         if let Some(t) = &torque {
-            t.update(window, k, |t| *t += torque_k);
+            t.update(particle, |t| *t += torque_k);
         }
         let heat_rate = heat.as_ref().map_or(
             0.0,
             |(thermal_model, temperature, laser_power, capacity, flow, boundary, conductance)| {
                 let (outside, outside_conductance) =
                     thermal::boundary_heat(thermal_model, &model.walls, state, k, temperature[k]);
-                boundary.update(window, k, |b| *b = outside);
-                flow.update(window, k, |q| *q += outside + laser_power[k]);
-                conductance.update(window, k, |g| *g += outside_conductance);
-                conductance.read(window, k) / capacity[k]
+                boundary.update(particle, |b| *b = outside);
+                flow.update(particle, |q| *q += outside + laser_power[k]);
+                conductance.update(particle, |g| *g += outside_conductance);
+                conductance.read(particle) / capacity[k]
             },
         );
         let mut summary = ForceSummary {

@@ -49,6 +49,10 @@ pub struct NeighborList {
     offsets: Vec<u32>,
     /// The partner of every slot, ascending within an owner.
     partners: Vec<u32>,
+    /// Whether an owner had a partner across a periodic face at the build: only these owners'
+    /// separations need the minimum image until the next build
+    /// ([`Window::needs_minimum_image`]).
+    crossing: Vec<bool>,
     /// Particles of slab s: `slab_members[slab_offsets[s]..slab_offsets[s + 1]]`, ascending.
     slab_offsets: Vec<u32>,
     slab_members: Vec<u32>,
@@ -276,6 +280,7 @@ impl NeighborList {
         }
         self.slab_members = Vec::new();
         self.slab_of = Vec::new();
+        self.crossing = Vec::new();
         let n = positions.len();
         let grid = Grid::new(positions, radii, self.skin, self.periodic.as_ref());
         // Cells are recomputed where needed rather than stored (24 bytes per particle less at
@@ -325,8 +330,11 @@ impl NeighborList {
         };
         let periodic = self.periodic;
         let skin = self.skin;
-        let partners_of = |i: usize, found: &mut Vec<u32>| {
+        // Returns whether a partner lies across a periodic face (its minimum image is not the
+        // plain difference of the stored positions).
+        let partners_of = |i: usize, found: &mut Vec<u32>| -> bool {
             let start = found.len();
+            let mut crossing = false;
             let c = grid.cell_of(positions[i]);
             for dz in -1..=1 {
                 for dy in -1..=1 {
@@ -336,38 +344,42 @@ impl NeighborList {
                             if j == i || !owns(i, j) {
                                 continue;
                             }
-                            let d = positions[j] - positions[i];
-                            let d = periodic.as_ref().map_or(d, |p| p.minimum_image(d));
+                            let plain = positions[j] - positions[i];
+                            let d = periodic.as_ref().map_or(plain, |p| p.minimum_image(plain));
                             let cutoff = radii[i] + radii[j] + skin;
                             if d.length_squared() < cutoff * cutoff {
                                 #[allow(clippy::cast_possible_truncation)]
                                 found.push(j as u32);
+                                crossing |= d != plain;
                             }
                         }
                     }
                 }
             }
             found[start..].sort_unstable();
+            crossing
         };
         const CHUNK: usize = 2048;
-        let chunks: Vec<(Vec<u32>, Vec<u32>)> = (0..n.div_ceil(CHUNK))
+        let chunks: Vec<(Vec<u32>, Vec<bool>, Vec<u32>)> = (0..n.div_ceil(CHUNK))
             .into_par_iter()
             .map(|chunk| {
-                let (mut counts, mut found) = (Vec::new(), Vec::new());
+                let (mut counts, mut crossing, mut found) = (Vec::new(), Vec::new(), Vec::new());
                 for i in chunk * CHUNK..((chunk + 1) * CHUNK).min(n) {
                     let before = found.len();
-                    partners_of(i, &mut found);
+                    crossing.push(partners_of(i, &mut found));
                     counts.push(u32::try_from(found.len() - before).expect("< 2^32 pairs"));
                 }
-                (counts, found)
+                (counts, crossing, found)
             })
             .collect();
         // Exact sizes: a growing `Vec` would keep up to twice the slots for the list's lifetime.
-        let total: usize = chunks.iter().map(|(_, found)| found.len()).sum();
+        let total: usize = chunks.iter().map(|(_, _, found)| found.len()).sum();
         self.offsets = Vec::with_capacity(n + 1);
         self.offsets.push(0);
         self.partners = Vec::with_capacity(total);
-        for (counts, found) in chunks {
+        self.crossing = Vec::with_capacity(n);
+        for (counts, crossing, found) in chunks {
+            self.crossing.extend_from_slice(&crossing);
             for count in counts {
                 let last = *self.offsets.last().unwrap_or(&0);
                 self.offsets
@@ -402,9 +414,30 @@ impl NeighborList {
             })
             .collect();
         self.slab_of = slab_of;
+        // The pair passes write to partners without checking each write (`scatter`): this is
+        // the proof they rely on, one pass over the slots per build.
+        assert!(
+            self.owners_reach_their_partners(),
+            "neighbour list: a partner outside its owner's slab and the successor"
+        );
         self.reference_positions.clear();
         self.reference_positions.extend_from_slice(positions);
         self.builds += 1;
+    }
+
+    /// Whether every partner lies in its owner's slab or in the successor slab: what makes the
+    /// windows of one colour phase disjoint.
+    fn owners_reach_their_partners(&self) -> bool {
+        self.offsets.windows(2).enumerate().all(|(owner, range)| {
+            let slab = self.slab_of[owner];
+            let successor = self.successor[slab as usize];
+            self.partners[range[0] as usize..range[1] as usize]
+                .iter()
+                .all(|&b| {
+                    let s = self.slab_of[b as usize];
+                    s == slab || s == successor
+                })
+        })
     }
 
     /// Number of pair slots.
@@ -470,11 +503,20 @@ impl NeighborList {
             let mut partial = identity.clone();
             for &k in self.slab_members(slab) {
                 let k = k as usize;
-                // SAFETY: the slabs running concurrently are those of one colour phase, whose
-                // sets {slab, successor} are disjoint (`colour_phases`; tested below), and an
-                // owner's slots belong to it alone.
+                // SAFETY: every partner lies in its owner's slab or the successor (checked at
+                // the end of `build`); the slabs running concurrently are those of one colour
+                // phase, whose sets {slab, successor} are disjoint (`colour_phases`; tested
+                // below); and an owner's slots belong to it alone.
                 let window = unsafe {
-                    Window::pair(k, self.slots(k), &self.slab_of, *s, self.successor[slab])
+                    Window::pair(
+                        k,
+                        self.slots(k),
+                        &self.partners,
+                        &self.slab_of,
+                        *s,
+                        self.successor[slab],
+                        self.crossing[k],
+                    )
                 };
                 visit(&mut partial, &window);
             }
@@ -739,6 +781,24 @@ mod tests {
                     cells_x
                 }
             );
+            // The owners flagged for the minimum image are exactly those with a partner whose
+            // plain difference is not its minimum image.
+            let crossing: Vec<bool> = (0..positions.len())
+                .map(|a| {
+                    list.slots(a).any(|p| {
+                        let d = positions[list.partners[p] as usize] - positions[a];
+                        periodic.minimum_image(d) != d
+                    })
+                })
+                .collect();
+            assert!(crossing.iter().any(|c| *c) && !crossing.iter().all(|c| *c));
+            let flagged = list.for_each_owner(
+                false,
+                vec![false; positions.len()],
+                |flags, window| flags[window.owner().index()] = window.needs_minimum_image(),
+                |a, b| a.iter().zip(&b).map(|(x, y)| *x || *y).collect(),
+            );
+            assert_eq!(flagged, crossing);
         }
     }
 

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use crate::contact::tangential::TangentialSpring;
 use crate::neighbor::{HeldPairs, NeighborList};
-use crate::scatter::{PerSlab, PerSlot, Scatter, Window};
+use crate::scatter::{PerSlab, PerSlot, Scatter, Slot, Window};
 
 /// A slot without a history entry.
 pub const NO_ENTRY: u32 = u32::MAX;
@@ -192,8 +192,8 @@ impl HistoryTargets<'_> {
     /// Slot `p`'s spring as the last pass left it (zero without an entry).
     #[inline]
     #[must_use]
-    pub fn read(&self, window: &Window<'_>, p: usize) -> TangentialSpring {
-        match self.entry.read(window, p) {
+    pub fn read(&self, window: &Window<'_>, p: Slot<'_>) -> TangentialSpring {
+        match self.entry.read(p) {
             NO_ENTRY => TangentialSpring::default(),
             e => self
                 .pools
@@ -203,23 +203,23 @@ impl HistoryTargets<'_> {
 
     /// Stores slot `p`'s spring for the next pass (a zero spring takes no entry).
     #[inline]
-    pub fn write(&self, window: &Window<'_>, p: usize, value: TangentialSpring) {
+    pub fn write(&self, window: &Window<'_>, p: Slot<'_>, value: TangentialSpring) {
         let e = if value == TangentialSpring::default() {
             NO_ENTRY
         } else {
             self.pools
                 .update_own(window, |pool| Pool::append(&mut pool.next, value))
         };
-        self.entry.update(window, p, |slot| *slot = e);
+        self.entry.update(p, |slot| *slot = e);
     }
 
     /// The contact of slot `p` ended: returns what its spring held, and the slot keeps none.
     #[inline]
-    pub fn release(&self, window: &Window<'_>, p: usize) -> TangentialSpring {
-        match self.entry.read(window, p) {
+    pub fn release(&self, window: &Window<'_>, p: Slot<'_>) -> TangentialSpring {
+        match self.entry.read(p) {
             NO_ENTRY => TangentialSpring::default(),
             e => {
-                self.entry.update(window, p, |slot| *slot = NO_ENTRY);
+                self.entry.update(p, |slot| *slot = NO_ENTRY);
                 self.pools
                     .update_own(window, |pool| pool.springs[e as usize])
             }
@@ -307,8 +307,8 @@ mod tests {
                 false,
                 (),
                 |(), window| {
-                    for p in window.slots() {
-                        if p == 0 && pass >= 3 {
+                    for (p, _) in window.pairs() {
+                        if p.index() == 0 && pass >= 3 {
                             let released = targets.release(window, p);
                             assert_eq!(released, spring(if pass == 3 { 2.0 } else { 0.0 }));
                         } else {

@@ -570,27 +570,25 @@ fn heat_flows(
     {
         let flow: Scatter<'_, f64, PerParticle> = Scatter::new(heat_flow);
         let sum: Scatter<'_, f64, PerParticle> = Scatter::new(total_conductance);
-        let partners = list.partners();
         list.for_each_owner(
             parallel,
             (),
             |(), window| {
-                let a = window.owner();
-                let t = temperature[a];
+                let owner = window.owner();
+                let t = temperature[owner.index()];
                 let (mut flow_a, mut sum_a) = (0.0, 0.0);
-                for p in window.slots() {
-                    let h = conductance[p];
+                for (p, partner) in window.pairs() {
+                    let h = conductance[p.index()];
                     if h > 0.0 {
-                        let b = partners[p] as usize;
-                        let q = h * (temperature[b] - t);
+                        let q = h * (temperature[partner.index()] - t);
                         flow_a += q;
                         sum_a += h;
-                        flow.update(window, b, |f| *f -= q);
-                        sum.update(window, b, |g| *g += h);
+                        flow.update(partner, |f| *f -= q);
+                        sum.update(partner, |g| *g += h);
                     }
                 }
-                flow.update(window, a, |f| *f += flow_a);
-                sum.update(window, a, |g| *g += sum_a);
+                flow.update(owner, |f| *f += flow_a);
+                sum.update(owner, |g| *g += sum_a);
             },
             |(), ()| (),
         );
