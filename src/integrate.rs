@@ -16,85 +16,127 @@ use rayon::prelude::*;
 use crate::contact::rolling;
 use crate::particles::{Particles, Rotation};
 
-/// First half: half kick then drift (M.30, M.31).
-pub fn kick_drift(particles: &mut Particles, dt: f64) {
+/// Particles per task of the integration passes.
+const CHUNK: usize = 1024;
+
+/// The opening half of a step, in one pass over the particles: the half kick and the drift
+/// (M.30, M.31) and, with rotation, the half kick of ω (M.62). Returns whether
+/// `moved_too_far(k, x)` held for some particle's new position `x` (the neighbour list's
+/// rebuild test, taken in the same pass: one parallel region and one sweep of the arrays instead
+/// of three).
+pub fn kick_drift(
+    particles: &mut Particles,
+    rotation: Option<&mut Rotation>,
+    dt: f64,
+    moved_too_far: impl Fn(usize, DVec3) -> bool + Sync,
+) -> bool {
     let Particles {
         position,
         velocity,
         force,
         mass,
+        radius,
         ..
     } = particles;
-    let update = |((x, v), (f, m)): ((&mut DVec3, &mut DVec3), (&DVec3, &f64))| {
-        *v += 0.5 * dt / m * *f;
-        *x += dt * *v;
-    };
-    if crate::worth_parallel(position.len()) {
-        let rates = force.par_iter().zip(mass.par_iter());
-        position
-            .par_iter_mut()
-            .zip(velocity.par_iter_mut())
-            .zip(rates)
-            .for_each(update);
-    } else {
-        let rates = force.iter().zip(mass.iter());
-        position
-            .iter_mut()
-            .zip(velocity.iter_mut())
-            .zip(rates)
-            .for_each(update);
-    }
+    let (force, mass, radius) = (&*force, &*mass, &*radius);
+    let parallel = crate::worth_parallel(position.len());
+    let (omega, torque) = angular(rotation);
+    let chunks: Vec<_> = position
+        .chunks_mut(CHUNK)
+        .zip(velocity.chunks_mut(CHUNK))
+        .zip(omega)
+        .collect();
+    any_chunk(chunks, parallel, |first, ((x, v), w)| {
+        let mut moved = false;
+        for (k, (x, v)) in (first..).zip(x.iter_mut().zip(v.iter_mut())) {
+            *v += 0.5 * dt / mass[k] * force[k];
+            *x += dt * *v;
+            moved |= moved_too_far(k, *x);
+        }
+        if let Some(w) = w {
+            kick_angular(w, first, torque, mass, radius, dt);
+        }
+        moved
+    })
 }
 
-/// Second half kick (M.32).
-pub fn kick(particles: &mut Particles, dt: f64) {
+/// The closing half kick (M.32) and, with rotation, that of ω (M.62), in one pass.
+pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64) {
     let Particles {
         velocity,
         force,
         mass,
+        radius,
         ..
     } = particles;
-    let update = |(v, (f, m)): (&mut DVec3, (&DVec3, &f64))| *v += 0.5 * dt / m * *f;
-    if crate::worth_parallel(velocity.len()) {
-        velocity
-            .par_iter_mut()
-            .zip(force.par_iter().zip(mass.par_iter()))
-            .for_each(update);
-    } else {
-        velocity
-            .iter_mut()
-            .zip(force.iter().zip(mass.iter()))
-            .for_each(update);
+    let (force, mass, radius) = (&*force, &*mass, &*radius);
+    let parallel = crate::worth_parallel(velocity.len());
+    let (omega, torque) = angular(rotation);
+    let chunks: Vec<_> = velocity.chunks_mut(CHUNK).zip(omega).collect();
+    any_chunk(chunks, parallel, |first, (v, w)| {
+        for (k, v) in (first..).zip(v.iter_mut()) {
+            *v += 0.5 * dt / mass[k] * force[k];
+        }
+        if let Some(w) = w {
+            kick_angular(w, first, torque, mass, radius, dt);
+        }
+        false
+    });
+}
+
+/// Chunks of [`CHUNK`] angular velocities, or `None` for every chunk without rotation.
+type AngularChunks<'a> = Box<dyn Iterator<Item = Option<&'a mut [DVec3]>> + 'a>;
+
+/// The angular velocities in chunks and the torques.
+fn angular(rotation: Option<&mut Rotation>) -> (AngularChunks<'_>, &[DVec3]) {
+    match rotation {
+        Some(Rotation {
+            angular_velocity,
+            torque,
+            ..
+        }) => (
+            Box::new(angular_velocity.chunks_mut(CHUNK).map(Some)),
+            torque.as_slice(),
+        ),
+        None => (Box::new(std::iter::repeat_with(|| None)), &[]),
     }
 }
 
-/// Half kick of the angular velocities (M.62): `ω += (dt/2) τ / I`, `I = (2/5) m r²`. Called
-/// with each half kick of the velocities, so ω follows the same velocity Verlet scheme; the
-/// spheres' orientation is not tracked (nothing depends on it).
-pub fn kick_rotation(particles: &Particles, rotation: &mut Rotation, dt: f64) {
-    let Rotation {
-        angular_velocity,
-        torque,
-        ..
-    } = rotation;
-    let update = |(w, (t, (m, r))): (&mut DVec3, (&DVec3, (&f64, &f64)))| {
-        *w += 0.5 * dt / rolling::sphere_inertia(*m, *r) * *t;
-    };
-    let shape = || particles.mass.iter().zip(&particles.radius);
-    if crate::worth_parallel(angular_velocity.len()) {
-        angular_velocity
-            .par_iter_mut()
-            .zip(
-                torque
-                    .par_iter()
-                    .zip(particles.mass.par_iter().zip(particles.radius.par_iter())),
-            )
-            .for_each(update);
+/// Half kick of the angular velocities of particles `first..` (M.62): `ω += (dt/2) τ / I`,
+/// `I = (2/5) m r²`. It goes with each half kick of the velocities, so ω follows the same
+/// velocity Verlet scheme; the spheres' orientation is not tracked (nothing depends on it).
+#[inline]
+fn kick_angular(
+    omega: &mut [DVec3],
+    first: usize,
+    torque: &[DVec3],
+    mass: &[f64],
+    radius: &[f64],
+    dt: f64,
+) {
+    for (k, w) in (first..).zip(omega) {
+        *w += 0.5 * dt / rolling::sphere_inertia(mass[k], radius[k]) * torque[k];
+    }
+}
+
+/// Runs `visit(first, chunk)` for every chunk (`first`: the index of its first particle), in
+/// parallel when `parallel`, and returns whether any visit returned `true`.
+fn any_chunk<T: Send>(
+    chunks: Vec<T>,
+    parallel: bool,
+    visit: impl Fn(usize, T) -> bool + Sync,
+) -> bool {
+    if parallel {
+        chunks
+            .into_par_iter()
+            .enumerate()
+            .map(|(c, chunk)| visit(c * CHUNK, chunk))
+            .reduce(|| false, |a, b| a || b)
     } else {
-        angular_velocity
-            .iter_mut()
-            .zip(torque.iter().zip(shape()))
-            .for_each(update);
+        chunks
+            .into_iter()
+            .enumerate()
+            .fold(false, |any, (c, chunk)| visit(c * CHUNK, chunk) || any)
     }
 }
 
@@ -135,4 +177,69 @@ pub fn stability_limit(stiffness: f64, effective_mass: f64, damping_ratio: f64) 
     }
     let omega = (stiffness / effective_mass).sqrt();
     2.0 * ((1.0 + damping_ratio * damping_ratio).sqrt() - damping_ratio) / omega
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::particles::ParticleInit;
+
+    /// `count` spheres of radius 1 at x = k, moving along y at k m/s, with force (0, 0, k) N and
+    /// torque (k, 0, 0) N·m on particle k.
+    fn row(count: usize) -> (Particles, Rotation) {
+        let mut particles = Particles::default();
+        for k in 0..count {
+            particles.push(
+                ParticleInit {
+                    position: DVec3::new(k as f64, 0.0, 0.0),
+                    velocity: DVec3::new(0.0, k as f64, 0.0),
+                    radius: 1.0,
+                    material: 0,
+                },
+                3.0 / (4.0 * std::f64::consts::PI), // mass 1 kg
+            );
+            particles.force[k] = DVec3::new(0.0, 0.0, k as f64);
+        }
+        let mut rotation = Rotation::new(count, 0);
+        for (k, t) in rotation.torque.iter_mut().enumerate() {
+            *t = DVec3::new(k as f64, 0.0, 0.0);
+        }
+        (particles, rotation)
+    }
+
+    #[test]
+    fn one_pass_kicks_drifts_turns_and_reports_who_moved_too_far() {
+        // Below and above the size from which the passes run in parallel, with the particle that
+        // moves too far in the first and in the last chunk.
+        for count in [10, 3 * CHUNK + 17] {
+            for far in [3, count - 2] {
+                let (mut particles, mut rotation) = row(count);
+                let dt = 0.5;
+                let moved = kick_drift(&mut particles, Some(&mut rotation), dt, |k, x| {
+                    // Particle k started at x = k: the test sees the drifted position.
+                    k == far && x.y > 0.0
+                });
+                assert!(moved, "{count} particles, particle {far}");
+                for k in 0..count {
+                    let kf = k as f64;
+                    // m = 1 kg, I = 2/5 kg·m².
+                    let v = DVec3::new(0.0, kf, 0.25 * kf);
+                    assert_eq!(particles.velocity[k], v);
+                    assert_eq!(particles.position[k], DVec3::new(kf, 0.0, 0.0) + dt * v);
+                    let w = rotation.angular_velocity[k].x;
+                    assert!((w - 0.25 * kf / 0.4).abs() <= 1e-12 * kf, "ω of {k}: {w}");
+                }
+                let none = kick_drift(&mut particles, None, dt, |_, _| false);
+                assert!(!none, "nobody moved too far");
+                // The closing kick: the velocity's z grows by dt/2 · F/m again, ω likewise.
+                kick(&mut particles, Some(&mut rotation), dt);
+                for k in 0..count {
+                    let kf = k as f64;
+                    assert_eq!(particles.velocity[k].z, 0.75 * kf);
+                    let w = rotation.angular_velocity[k].x;
+                    assert!((w - 0.5 * kf / 0.4).abs() <= 1e-12 * kf, "ω of {k}: {w}");
+                }
+            }
+        }
+    }
 }

@@ -222,22 +222,22 @@ impl NeighborList {
         }
     }
 
-    /// True when some particle moved more than half the skin since the last build (or there was none).
+    /// The rebuild test of one particle: whether `x`, particle `k`'s position, lies more than
+    /// half the skin from its position at the last build (true for a particle the last build did
+    /// not have). The integrator takes it with the drift (`integrate::kick_drift`).
     #[must_use]
-    pub fn needs_rebuild(&self, positions: &[DVec3]) -> bool {
-        if self.reference_positions.len() != positions.len() {
-            return true;
-        }
-        let limit = 0.25 * self.skin * self.skin;
-        let moved = |(x, x0): (&DVec3, &DVec3)| (*x - *x0).length_squared() > limit;
-        if crate::worth_parallel(positions.len()) {
-            positions
-                .par_iter()
-                .zip(&self.reference_positions)
-                .any(moved)
-        } else {
-            positions.iter().zip(&self.reference_positions).any(moved)
-        }
+    #[inline]
+    pub fn moved_too_far(&self, k: usize, x: DVec3) -> bool {
+        self.reference_positions
+            .get(k)
+            .is_none_or(|x0| (x - *x0).length_squared() > 0.25 * self.skin * self.skin)
+    }
+
+    /// Whether the last build had a different number of particles than `count` (or there was
+    /// none): the list must be rebuilt whatever the displacements.
+    #[must_use]
+    pub fn is_stale(&self, count: usize) -> bool {
+        self.reference_positions.len() != count
     }
 
     /// The positions of the last build \[m\] (a restart saves them, so that a resumed run builds

@@ -884,11 +884,12 @@ impl Simulation {
     /// Advances one time step in the documented order.
     pub fn step(&mut self) {
         let dt = self.model.dt;
-        integrate::kick_drift(&mut self.particles, dt);
-        if let Some(rotation) = &mut self.rotation {
-            integrate::kick_rotation(&self.particles, rotation, dt);
-        }
-        if self.neighbors.needs_rebuild(&self.particles.position) {
+        let neighbors = &self.neighbors;
+        let moved =
+            integrate::kick_drift(&mut self.particles, self.rotation.as_mut(), dt, |k, x| {
+                neighbors.moved_too_far(k, x)
+            });
+        if moved || self.neighbors.is_stale(self.particles.len()) {
             self.rebuild_neighbors();
         }
         self.absorb_laser();
@@ -897,10 +898,7 @@ impl Simulation {
         self.force_summary = summary;
         let first_flows = self.thermal.is_some().then_some(summary.max_heat_rate);
         self.advance_temperatures(first_flows);
-        integrate::kick(&mut self.particles, dt);
-        if let Some(rotation) = &mut self.rotation {
-            integrate::kick_rotation(&self.particles, rotation, dt);
-        }
+        integrate::kick(&mut self.particles, self.rotation.as_mut(), dt);
         self.step += 1;
         #[allow(clippy::cast_precision_loss)]
         let time = self.step as f64 * dt; // no accumulated round-off over millions of steps
