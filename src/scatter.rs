@@ -166,7 +166,9 @@ impl<'a> Window<'a> {
     /// The visit's pair slots with their partners, in slot order.
     #[inline]
     pub fn pairs(&self) -> impl Iterator<Item = (Slot<'_>, Member<'_>)> {
-        self.slots.clone().zip(self.partners).map(|(p, &b)| {
+        let first = self.slots.start;
+        self.partners.iter().enumerate().map(move |(i, &b)| {
+            let p = first + i;
             debug_assert!(
                 self.slab_of
                     .get(b as usize)
