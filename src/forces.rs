@@ -246,12 +246,23 @@ pub fn compute(
             tangential: histories.as_mut().map(|h| h.start_pass()),
             heat,
         };
-        let summary = list.for_each_owner(
-            parallel,
-            ForceSummary::default(),
-            |summary, window| owner_pairs(model, state, omega, &targets, summary, window),
-            ForceSummary::merge,
-        );
+        // One compiled pass per combination of the scene's optional pair physics: what a scene
+        // does not have is not in its pass (no test per candidate, fewer live registers).
+        let pass = match (
+            targets.states.is_some(),
+            targets.tangential.is_some(),
+            targets.heat.is_some(),
+        ) {
+            (false, false, false) => pair_pass::<false, false, false>,
+            (false, false, true) => pair_pass::<false, false, true>,
+            (false, true, false) => pair_pass::<false, true, false>,
+            (false, true, true) => pair_pass::<false, true, true>,
+            (true, false, false) => pair_pass::<true, false, false>,
+            (true, false, true) => pair_pass::<true, false, true>,
+            (true, true, false) => pair_pass::<true, true, false>,
+            (true, true, true) => pair_pass::<true, true, true>,
+        };
+        let summary = pass(model, state, list, omega, &targets, parallel);
         if let Some(h) = histories {
             h.finish_pass();
         }
@@ -293,10 +304,31 @@ struct HeatTargets<'a> {
     total_conductance: Scatter<'a, f64, PerParticle>,
 }
 
+/// The pair pass over every owner, compiled for one combination of optional physics: bond
+/// states (`BONDS`), tangential springs and torques (`FRICTION`), conduction (`HEAT`). A target
+/// the combination leaves out is ignored even if present.
+fn pair_pass<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+    model: &Model,
+    particles: &Particles,
+    list: &NeighborList,
+    omega: Option<&[DVec3]>,
+    targets: &PairTargets<'_>,
+    parallel: bool,
+) -> ForceSummary {
+    list.for_each_owner(
+        parallel,
+        ForceSummary::default(),
+        |summary, window| {
+            owner_pairs::<BONDS, FRICTION, HEAT>(model, particles, omega, targets, summary, window);
+        },
+        ForceSummary::merge,
+    )
+}
+
 /// The pairs of the window's owner: every contact law, added to both particles.
 #[allow(clippy::too_many_lines)]
 #[inline]
-fn owner_pairs(
+fn owner_pairs<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     model: &Model,
     particles: &Particles,
     omega: Option<&[DVec3]>,
@@ -304,6 +336,13 @@ fn owner_pairs(
     summary: &mut ForceSummary,
     window: &Window<'_>,
 ) {
+    // Known at compile time to be `None` where the instantiation leaves the physics out.
+    let states = targets.states.as_ref().filter(|_| BONDS);
+    let histories = targets.tangential.as_ref().filter(|_| FRICTION);
+    let torque = targets.torque.as_ref().filter(|_| FRICTION);
+    let omega = omega.filter(|_| FRICTION);
+    let friction_tables = model.friction.as_ref().filter(|_| FRICTION);
+    let heat = targets.heat.as_ref().filter(|_| HEAT);
     let owner = window.owner();
     let a = owner.index();
     let periodic = model
@@ -327,12 +366,12 @@ fn owner_pairs(
         if distance_squared >= reach * reach {
             // Most candidate pairs are apart: no square root, no division, and no write unless
             // the slot still holds something from an earlier contact.
-            if let Some(states) = &targets.states {
+            if let Some(states) = states {
                 if states.read(p) != BondState::Unbonded {
                     states.update(p, |s| *s = BondState::Unbonded);
                 }
             }
-            if let Some(histories) = &targets.tangential {
+            if let Some(histories) = histories {
                 // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is
                 // lost, half to each particle.
                 let held = histories.release(window, p);
@@ -343,7 +382,7 @@ fn owner_pairs(
                         .update(partner, |l| *l += 0.5 * held.spring_energy);
                 }
             }
-            if let Some(h) = &targets.heat {
+            if let Some(h) = heat {
                 if h.conductance.read(p) != 0.0 {
                     h.conductance.update(p, |c| *c = 0.0);
                 }
@@ -370,15 +409,9 @@ fn owner_pairs(
         summary.observe_overlap(overlap / r_a.min(r_b), if r_a <= r_b { a } else { b });
         let material_b = particles.material[b];
         let params = model.pair_params(material_a, material_b);
-        let melted = targets
-            .heat
-            .as_ref()
-            .map_or((false, false), |h| (h.melted[a], h.melted[b]));
+        let melted = heat.map_or((false, false), |h| (h.melted[a], h.melted[b]));
         let criterion = model.bond_criterion.holds(melted.0, melted.1);
-        let state = targets
-            .states
-            .as_ref()
-            .map_or(BondState::Unbonded, |states| states.read(p));
+        let state = states.map_or(BondState::Unbonded, |states| states.read(p));
         let outcome = contact::normal_force(params, &kinematics, state, criterion);
         // (M.35): damper work over the step, at the half-step velocity the force used.
         let mut lost = model.dt * (outcome.force - outcome.elastic) * kinematics.overlap_rate;
@@ -394,14 +427,12 @@ fn owner_pairs(
                     BondState::Unbonded => bond_energy - hertz_energy,
                 };
             }
-            if let Some(states) = &targets.states {
+            if let Some(states) = states {
                 states.update(p, |s| *s = outcome.state);
             }
         }
         let mut force_on_a = -outcome.force * normal;
-        if let (Some(histories), Some(omega), Some(tables)) =
-            (&targets.tangential, omega, model.friction.as_ref())
-        {
+        if let (Some(histories), Some(omega), Some(tables)) = (histories, omega, friction_tables) {
             // Lever arms to the middle of the overlap (M.60).
             let arm_a = r_a - 0.5 * overlap;
             let arm_b = r_b - 0.5 * overlap;
@@ -434,7 +465,7 @@ fn owner_pairs(
             lost += step.lost;
             let lever = normal.cross(step.force);
             torque_a += arm_a * lever + step.rolling_torque;
-            if let Some(torque) = &targets.torque {
+            if let Some(torque) = torque {
                 torque.update(partner, |t| *t += arm_b * lever - step.rolling_torque);
             }
         }
@@ -444,7 +475,7 @@ fn owner_pairs(
             targets.force.update(partner, |f| *f -= force_on_a);
             targets.lost.update(partner, |l| *l += 0.5 * lost);
         }
-        if let Some(h) = &targets.heat {
+        if let Some(h) = heat {
             let conductance = thermal::pair_conductance(
                 h.model,
                 particles,
@@ -466,10 +497,10 @@ fn owner_pairs(
     {
         targets.force.update(owner, |f| *f += force_a);
         targets.lost.update(owner, |l| *l += lost_a);
-        if let Some(torque) = &targets.torque {
+        if let Some(torque) = torque {
             torque.update(owner, |t| *t += torque_a);
         }
-        if let Some(h) = &targets.heat {
+        if let Some(h) = heat {
             h.heat_flow.update(owner, |q| *q += heat_a);
             h.total_conductance.update(owner, |g| *g += conductance_a);
         }
