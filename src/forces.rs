@@ -270,7 +270,13 @@ pub fn compute(
     };
     particles.force = forces;
     particles.dissipated = dissipated;
-    let own = particle_pass(model, particles, rotation, heat, parallel);
+    // As for the pair pass: one compiled particle pass per combination of optional physics.
+    let own = match (rotation.is_some(), heat.is_some()) {
+        (false, false) => particle_pass::<false, false>(model, particles, rotation, heat, parallel),
+        (false, true) => particle_pass::<false, true>(model, particles, rotation, heat, parallel),
+        (true, false) => particle_pass::<true, false>(model, particles, rotation, heat, parallel),
+        (true, true) => particle_pass::<true, true>(model, particles, rotation, heat, parallel),
+    };
     pairs.merge(own)
 }
 
@@ -509,9 +515,10 @@ fn owner_pairs<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
 
 /// The particle pass: gravity, the wall contacts (normal, and with rotation tangential and
 /// rolling), boundary heat and laser power, and the per-step checks. Each particle writes only
-/// its own entries.
+/// its own entries. Compiled for one combination of optional physics: rotation with the wall
+/// springs (`ROTATION`) and conduction (`HEAT`); what it leaves out is ignored even if given.
 #[allow(clippy::too_many_lines)]
-fn particle_pass(
+fn particle_pass<const ROTATION: bool, const HEAT: bool>(
     model: &Model,
     particles: &mut Particles,
     rotation: Option<&mut Rotation>,
@@ -559,6 +566,13 @@ fn particle_pass(
         )
     });
     let visit = |springs: &mut Option<&mut Chunk>, window: &Window<'_>| -> ForceSummary {
+        // Known at compile time to be `None` where the instantiation leaves the physics out.
+        let mut springs = springs.as_deref_mut().filter(|_| ROTATION);
+        let (omega, torque) = (
+            omega.filter(|_| ROTATION),
+            torque.as_ref().filter(|_| ROTATION),
+        );
+        let heat = heat.as_ref().filter(|_| HEAT);
         let particle = window.owner();
         let k = particle.index();
         let mut max_overlap: f64 = 0.0;
@@ -626,10 +640,10 @@ fn particle_pass(
             total = *f;
         });
         lost_out.update(particle, |l| *l += lost);
-        if let Some(t) = &torque {
+        if let Some(t) = torque {
             t.update(particle, |t| *t += torque_k);
         }
-        let heat_rate = heat.as_ref().map_or(
+        let heat_rate = heat.map_or(
             0.0,
             |(thermal_model, temperature, laser_power, capacity, flow, boundary, conductance)| {
                 let (outside, outside_conductance) =
