@@ -35,10 +35,18 @@ impl Pool {
     #[inline]
     fn append(buffer: &mut Vec<TangentialSpring>, value: TangentialSpring) -> u32 {
         if buffer.len() == buffer.capacity() {
-            buffer.reserve_exact(buffer.len() / 8 + 16);
+            Self::grow(buffer);
         }
         buffer.push(value);
         u32::try_from(buffer.len() - 1).expect("fewer than 2^32 contacts in a slab")
+    }
+
+    /// Out of line and cold: it runs a few times per build, while the pair pass appends once per
+    /// contact and step, and it kept the append (and the pass's write) from being inlined.
+    #[cold]
+    #[inline(never)]
+    fn grow(buffer: &mut Vec<TangentialSpring>) {
+        buffer.reserve_exact(buffer.len() / 8 + 16);
     }
 }
 
@@ -202,7 +210,7 @@ impl HistoryTargets<'_> {
     }
 
     /// Stores slot `p`'s spring for the next pass (a zero spring takes no entry).
-    #[inline]
+    #[inline(always)]
     pub fn write(&self, window: &Window<'_>, p: Slot<'_>, value: TangentialSpring) {
         let e = if value == TangentialSpring::default() {
             NO_ENTRY
