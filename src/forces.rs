@@ -194,7 +194,9 @@ fn tangential_step(
 /// The force pass (steps 4-5 of the step order): every particle's force, with rotation its
 /// torque, with `[thermal]` its first-substep heat flows and every slot's conductance; bond states
 /// (`states`, per slot, given when the scene has a bond law) and tangential histories advance by
-/// one step. Returns what the per-step guards need.
+/// one step. Returns what the per-step guards need. `cleared`: the forces and torques are
+/// already zero (the step's opening pass, `integrate::kick_drift`, leaves them so), and the
+/// pass adds into them without zeroing them first.
 pub fn compute(
     model: &Model,
     particles: &mut Particles,
@@ -202,11 +204,14 @@ pub fn compute(
     states: Option<&mut [BondState]>,
     rotation: Option<PassRotation<'_>>,
     mut heat: Option<PassHeat<'_>>,
+    cleared: bool,
 ) -> ForceSummary {
     let parallel = crate::worth_parallel(particles.len());
     let mut forces = std::mem::take(&mut particles.force);
     let mut dissipated = std::mem::take(&mut particles.dissipated);
-    fill(&mut forces, DVec3::ZERO, parallel);
+    if !cleared {
+        fill(&mut forces, DVec3::ZERO, parallel);
+    }
     let (mut rotation, mut histories) = match rotation {
         Some(PassRotation {
             rotation,
@@ -214,7 +219,7 @@ pub fn compute(
         }) => (Some(rotation), Some(histories)),
         None => (None, None),
     };
-    if let Some(r) = &mut rotation {
+    if let Some(r) = rotation.as_mut().filter(|_| !cleared) {
         fill(&mut r.torque, DVec3::ZERO, parallel);
     }
     if let Some(h) = &mut heat {

@@ -20,10 +20,11 @@ use crate::particles::{Particles, Rotation};
 const CHUNK: usize = 1024;
 
 /// The opening half of a step, in one pass over the particles: the half kick and the drift
-/// (M.30, M.31) and, with rotation, the half kick of ω (M.62). Returns whether
-/// `moved_too_far(k, x)` held for some particle's new position `x` (the neighbour list's
-/// rebuild test, taken in the same pass: one parallel region and one sweep of the arrays instead
-/// of three).
+/// (M.30, M.31) and, with rotation, the half kick of ω (M.62). The half kick is the last reader
+/// of the step's forces and torques: the pass leaves them at zero, ready for the next force pass
+/// to add into (`forces::compute` with `cleared`). Returns whether `moved_too_far(k, x)` held
+/// for some particle's new position `x` (the neighbour list's rebuild test, taken in the same
+/// pass: one parallel region and one sweep of the arrays instead of five).
 pub fn kick_drift(
     particles: &mut Particles,
     rotation: Option<&mut Rotation>,
@@ -38,26 +39,52 @@ pub fn kick_drift(
         radius,
         ..
     } = particles;
-    let (force, mass, radius) = (&*force, &*mass, &*radius);
+    let (mass, radius) = (&*mass, &*radius);
     let parallel = crate::worth_parallel(position.len());
-    let (omega, torque) = angular(rotation);
+    let (omega, torque) = angular_mut(rotation);
     let chunks: Vec<_> = position
         .chunks_mut(CHUNK)
         .zip(velocity.chunks_mut(CHUNK))
-        .zip(omega)
+        .zip(force.chunks_mut(CHUNK).zip(omega.zip(torque)))
         .collect();
-    any_chunk(chunks, parallel, |first, ((x, v), w)| {
+    any_chunk(chunks, parallel, |first, ((x, v), (f, angular))| {
         let mut moved = false;
-        for (k, (x, v)) in (first..).zip(x.iter_mut().zip(v.iter_mut())) {
-            *v += 0.5 * dt / mass[k] * force[k];
+        for (k, ((x, v), f)) in (first..).zip(x.iter_mut().zip(v.iter_mut()).zip(f.iter_mut())) {
+            *v += 0.5 * dt / mass[k] * *f;
             *x += dt * *v;
+            *f = DVec3::ZERO;
             moved |= moved_too_far(k, *x);
         }
-        if let Some(w) = w {
-            kick_angular(w, first, torque, mass, radius, dt);
+        if let (Some(w), Some(t)) = angular {
+            for (k, (w, t)) in (first..).zip(w.iter_mut().zip(t.iter_mut())) {
+                *w += 0.5 * dt / rolling::sphere_inertia(mass[k], radius[k]) * *t;
+                *t = DVec3::ZERO;
+            }
         }
         moved
     })
+}
+
+/// Chunks of [`CHUNK`] angular velocities and torques, or `None` for every chunk without
+/// rotation.
+type AngularChunksMut<'a> = Box<dyn Iterator<Item = Option<&'a mut [DVec3]>> + 'a>;
+
+/// The angular velocities and the torques in chunks, both writable.
+fn angular_mut(rotation: Option<&mut Rotation>) -> (AngularChunksMut<'_>, AngularChunksMut<'_>) {
+    match rotation {
+        Some(Rotation {
+            angular_velocity,
+            torque,
+            ..
+        }) => (
+            Box::new(angular_velocity.chunks_mut(CHUNK).map(Some)),
+            Box::new(torque.chunks_mut(CHUNK).map(Some)),
+        ),
+        None => (
+            Box::new(std::iter::repeat_with(|| None)),
+            Box::new(std::iter::repeat_with(|| None)),
+        ),
+    }
 }
 
 /// The closing half kick (M.32) and, with rotation, that of ω (M.62), in one pass.
@@ -229,15 +256,28 @@ mod tests {
                     let w = rotation.angular_velocity[k].x;
                     assert!((w - 0.25 * kf / 0.4).abs() <= 1e-12 * kf, "ω of {k}: {w}");
                 }
-                let none = kick_drift(&mut particles, None, dt, |_, _| false);
-                assert!(!none, "nobody moved too far");
-                // The closing kick: the velocity's z grows by dt/2 · F/m again, ω likewise.
+                // The half kick was the last reader: forces and torques are left at zero.
+                assert!(particles.force.iter().all(|f| *f == DVec3::ZERO));
+                assert!(rotation.torque.iter().all(|t| *t == DVec3::ZERO));
+                // A force pass fills them again; the closing kick: v_z and ω grow by as much.
+                let (refilled, _) = row(count);
+                particles.force.clone_from(&refilled.force);
+                let (_, refilled) = row(count);
+                rotation.torque.clone_from(&refilled.torque);
                 kick(&mut particles, Some(&mut rotation), dt);
                 for k in 0..count {
                     let kf = k as f64;
-                    assert_eq!(particles.velocity[k].z, 0.75 * kf);
+                    assert_eq!(particles.velocity[k].z, 0.5 * kf);
                     let w = rotation.angular_velocity[k].x;
                     assert!((w - 0.5 * kf / 0.4).abs() <= 1e-12 * kf, "ω of {k}: {w}");
+                }
+                // Without rotation the torques are neither used nor cleared.
+                let none = kick_drift(&mut particles, None, dt, |_, _| false);
+                assert!(!none, "nobody moved too far");
+                assert!(particles.force.iter().all(|f| *f == DVec3::ZERO));
+                assert_eq!(rotation.torque, refilled.torque);
+                for k in 0..count {
+                    assert_eq!(particles.velocity[k].z, 0.75 * k as f64);
                 }
             }
         }

@@ -54,6 +54,10 @@ pub struct Simulation {
     /// With rotation only: the tangential histories of the pairs in contact, carried over
     /// rebuilds like `bond_states`.
     tangential: TangentialHistories,
+    /// Whether the forces and torques are zero, as the step's opening pass leaves them: the
+    /// force pass then skips its own zeroing (one parallel region and one sweep fewer per step).
+    /// Any other force evaluation finds it false and zeroes first.
+    forces_cleared: bool,
     /// Steps taken.
     pub step: u64,
     /// Simulated time \[s\].
@@ -303,6 +307,7 @@ impl Simulation {
             rotation,
             tangential: TangentialHistories::default(),
             removed: Removed::default(),
+            forces_cleared: false,
             step: 0,
             time: 0.0,
         };
@@ -571,6 +576,7 @@ impl Simulation {
             rotation,
             tangential: TangentialHistories::default(),
             removed: state.removed,
+            forces_cleared: false,
             step: state.step,
             time: 0.0,
         };
@@ -812,6 +818,7 @@ impl Simulation {
                 histories: &mut self.tangential,
             }),
             heat,
+            std::mem::take(&mut self.forces_cleared),
         )
     }
 
@@ -889,6 +896,9 @@ impl Simulation {
             integrate::kick_drift(&mut self.particles, self.rotation.as_mut(), dt, |k, x| {
                 neighbors.moved_too_far(k, x)
             });
+        // The opening pass left the forces and torques at zero (a rebuild permutes and drops
+        // particles but keeps zeros zero).
+        self.forces_cleared = true;
         if moved || self.neighbors.is_stale(self.particles.len()) {
             self.rebuild_neighbors();
         }
