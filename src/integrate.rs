@@ -41,11 +41,17 @@ pub fn kick_drift(
     } = particles;
     let (mass, radius) = (&*mass, &*radius);
     let parallel = crate::worth_parallel(position.len());
-    let (omega, torque) = angular_mut(rotation);
+    let (omega, torque) = rotation
+        .map(|r| (r.angular_velocity.as_mut_slice(), r.torque.as_mut_slice()))
+        .unzip();
     let chunks: Vec<_> = position
         .chunks_mut(CHUNK)
         .zip(velocity.chunks_mut(CHUNK))
-        .zip(force.chunks_mut(CHUNK).zip(omega.zip(torque)))
+        .zip(
+            force
+                .chunks_mut(CHUNK)
+                .zip(optional_chunks(omega).zip(optional_chunks(torque))),
+        )
         .collect();
     any_chunk(chunks, parallel, |first, ((x, v), (f, angular))| {
         let mut moved = false;
@@ -56,35 +62,11 @@ pub fn kick_drift(
             moved |= moved_too_far(k, *x);
         }
         if let (Some(w), Some(t)) = angular {
-            for (k, (w, t)) in (first..).zip(w.iter_mut().zip(t.iter_mut())) {
-                *w += 0.5 * dt / rolling::sphere_inertia(mass[k], radius[k]) * *t;
-                *t = DVec3::ZERO;
-            }
+            kick_angular(w, t, first, mass, radius, dt);
+            t.fill(DVec3::ZERO);
         }
         moved
     })
-}
-
-/// Chunks of [`CHUNK`] angular velocities and torques, or `None` for every chunk without
-/// rotation.
-type AngularChunksMut<'a> = Box<dyn Iterator<Item = Option<&'a mut [DVec3]>> + 'a>;
-
-/// The angular velocities and the torques in chunks, both writable.
-fn angular_mut(rotation: Option<&mut Rotation>) -> (AngularChunksMut<'_>, AngularChunksMut<'_>) {
-    match rotation {
-        Some(Rotation {
-            angular_velocity,
-            torque,
-            ..
-        }) => (
-            Box::new(angular_velocity.chunks_mut(CHUNK).map(Some)),
-            Box::new(torque.chunks_mut(CHUNK).map(Some)),
-        ),
-        None => (
-            Box::new(std::iter::repeat_with(|| None)),
-            Box::new(std::iter::repeat_with(|| None)),
-        ),
-    }
 }
 
 /// The closing half kick (M.32) and, with rotation, that of ω (M.62), in one pass.
@@ -98,51 +80,48 @@ pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64)
     } = particles;
     let (force, mass, radius) = (&*force, &*mass, &*radius);
     let parallel = crate::worth_parallel(velocity.len());
-    let (omega, torque) = angular(rotation);
-    let chunks: Vec<_> = velocity.chunks_mut(CHUNK).zip(omega).collect();
-    any_chunk(chunks, parallel, |first, (v, w)| {
+    let (omega, torque) = rotation
+        .map(|r| (r.angular_velocity.as_mut_slice(), r.torque.as_mut_slice()))
+        .unzip();
+    let chunks: Vec<_> = velocity
+        .chunks_mut(CHUNK)
+        .zip(optional_chunks(omega).zip(optional_chunks(torque)))
+        .collect();
+    any_chunk(chunks, parallel, |first, (v, angular)| {
         for (k, v) in (first..).zip(v.iter_mut()) {
             *v += 0.5 * dt / mass[k] * force[k];
         }
-        if let Some(w) = w {
-            kick_angular(w, first, torque, mass, radius, dt);
+        if let (Some(w), Some(t)) = angular {
+            kick_angular(w, t, first, mass, radius, dt);
         }
         false
     });
 }
 
-/// Chunks of [`CHUNK`] angular velocities, or `None` for every chunk without rotation.
-type AngularChunks<'a> = Box<dyn Iterator<Item = Option<&'a mut [DVec3]>> + 'a>;
-
-/// The angular velocities in chunks and the torques.
-fn angular(rotation: Option<&mut Rotation>) -> (AngularChunks<'_>, &[DVec3]) {
-    match rotation {
-        Some(Rotation {
-            angular_velocity,
-            torque,
-            ..
-        }) => (
-            Box::new(angular_velocity.chunks_mut(CHUNK).map(Some)),
-            torque.as_slice(),
-        ),
-        None => (Box::new(std::iter::repeat_with(|| None)), &[]),
+/// `slice` in chunks of [`CHUNK`], or `None` for every chunk without it (a scene without
+/// rotation).
+fn optional_chunks<T>(slice: Option<&mut [T]>) -> Box<dyn Iterator<Item = Option<&mut [T]>> + '_> {
+    match slice {
+        Some(slice) => Box::new(slice.chunks_mut(CHUNK).map(Some)),
+        None => Box::new(std::iter::repeat_with(|| None)),
     }
 }
 
 /// Half kick of the angular velocities of particles `first..` (M.62): `ω += (dt/2) τ / I`,
-/// `I = (2/5) m r²`. It goes with each half kick of the velocities, so ω follows the same
-/// velocity Verlet scheme; the spheres' orientation is not tracked (nothing depends on it).
+/// `I = (2/5) m r²`, with `omega` and `torque` the chunks of those particles. It goes with each
+/// half kick of the velocities, so ω follows the same velocity Verlet scheme; the spheres'
+/// orientation is not tracked (nothing depends on it).
 #[inline]
 fn kick_angular(
     omega: &mut [DVec3],
-    first: usize,
     torque: &[DVec3],
+    first: usize,
     mass: &[f64],
     radius: &[f64],
     dt: f64,
 ) {
-    for (k, w) in (first..).zip(omega) {
-        *w += 0.5 * dt / rolling::sphere_inertia(mass[k], radius[k]) * torque[k];
+    for (k, (w, t)) in (first..).zip(omega.iter_mut().zip(torque)) {
+        *w += 0.5 * dt / rolling::sphere_inertia(mass[k], radius[k]) * *t;
     }
 }
 
