@@ -54,10 +54,6 @@ pub struct Simulation {
     /// With rotation only: the tangential histories of the pairs in contact, carried over
     /// rebuilds like `bond_states`.
     tangential: TangentialHistories,
-    /// Whether the forces and torques are zero, as the step's opening pass leaves them: the
-    /// force pass then skips its own zeroing (one parallel region and one sweep fewer per step).
-    /// Any other force evaluation finds it false and zeroes first.
-    forces_cleared: bool,
     /// Steps taken.
     pub step: u64,
     /// Simulated time \[s\].
@@ -307,12 +303,11 @@ impl Simulation {
             rotation,
             tangential: TangentialHistories::default(),
             removed: Removed::default(),
-            forces_cleared: false,
             step: 0,
             time: 0.0,
         };
         sim.rebuild_neighbors();
-        sim.force_summary = sim.compute_forces();
+        sim.force_summary = sim.compute_forces(false);
         sim.clear_tangential_history();
         // The t = 0 evaluation did no work over time; the energy the run starts with already
         // counts any bond it formed.
@@ -576,7 +571,6 @@ impl Simulation {
             rotation,
             tangential: TangentialHistories::default(),
             removed: state.removed,
-            forces_cleared: false,
             step: state.step,
             time: 0.0,
         };
@@ -777,8 +771,10 @@ impl Simulation {
     }
 
     /// The force pass (steps 4-5). With `[thermal]` it also computes the contact conductances
-    /// and the first substep's heat flows.
-    fn compute_forces(&mut self) -> ForceSummary {
+    /// and the first substep's heat flows. `cleared`: the forces and torques are already zero, as
+    /// the step's opening pass leaves them (the pass then skips its own zeroing: one parallel
+    /// region and one sweep fewer per step).
+    fn compute_forces(&mut self, cleared: bool) -> ForceSummary {
         let heat = match (&self.model.thermal, &mut self.thermal) {
             (Some(model), Some(state)) => {
                 let ThermalState {
@@ -818,7 +814,7 @@ impl Simulation {
                 histories: &mut self.tangential,
             }),
             heat,
-            std::mem::take(&mut self.forces_cleared),
+            cleared,
         )
     }
 
@@ -896,14 +892,13 @@ impl Simulation {
             integrate::kick_drift(&mut self.particles, self.rotation.as_mut(), dt, |k, x| {
                 neighbors.moved_too_far(k, x)
             });
-        // The opening pass left the forces and torques at zero (a rebuild permutes and drops
-        // particles but keeps zeros zero).
-        self.forces_cleared = true;
         if moved || self.neighbors.is_stale(self.particles.len()) {
             self.rebuild_neighbors();
         }
         self.absorb_laser();
-        let summary = self.compute_forces();
+        // The opening pass left the forces and torques at zero (a rebuild permutes and drops
+        // particles but keeps zeros zero).
+        let summary = self.compute_forces(true);
         self.peak_overlap_ratio = self.peak_overlap_ratio.max(summary.max_overlap_ratio);
         self.force_summary = summary;
         let first_flows = self.thermal.is_some().then_some(summary.max_heat_rate);
