@@ -13,8 +13,8 @@
 //! *slots* (CSR), where their history lives.
 //!
 //! A pass ([`NeighborList::for_each_owner`]) visits the slabs in two colour phases, even slabs
-//! then odd slabs (a periodic axis with an odd number of layers merges its last two into one slab;
-//! with only three layers the last slab runs alone in a third phase). A
+//! then odd slabs (a periodic slab axis gets an even number of layers from five on, each a little
+//! wider than a cell must be; with only three layers the last slab runs alone in a third phase). A
 //! slab's owners only reach particles of that slab and of its successor, so the slabs of one phase
 //! touch disjoint particles and disjoint slots and run in parallel. A pass therefore evaluates each
 //! pair once and adds its force to both particles directly, without atomics, locks or per-thread
@@ -170,6 +170,17 @@ impl Grid {
         let slab_axis = (0..3)
             .max_by(|&a, &b| extent[a].total_cmp(&extent[b]).then(b.cmp(&a)))
             .unwrap_or(0);
+        if let (start, _, Some(count)) = axes[slab_axis] {
+            if count >= 5 && count % 2 == 1 {
+                // An even number of slabs around a periodic axis pairs them up into two colour
+                // phases of equal work. One layer fewer, each 1/(count − 1) wider, keeps the
+                // cells at least `cell` wide; merging two layers into one slab instead made one
+                // slab twice the others, and the phase that held it waited for it.
+                #[allow(clippy::cast_precision_loss)]
+                let size = extent[slab_axis] / (count - 1) as f64;
+                axes[slab_axis] = (start, size, Some(count - 1));
+            }
+        }
         Self { axes, slab_axis }
     }
 
@@ -607,27 +618,18 @@ impl NeighborList {
 }
 
 /// Each particle's slab and the number of slabs. On a periodic slab axis the slab is the cell
-/// layer (with an odd count of five or more, the last slab two layers); otherwise the occupied layers are numbered in order (empty layers dropped, so that a
-/// stray particle far away costs no memory), which keeps "successor" meaning "the next occupied
-/// layer", the only one besides its own that an owner's partners can lie in.
+/// layer (an even number of them from five on, see [`Grid::new`]); otherwise the occupied layers
+/// are numbered in order (empty layers dropped, so that a stray particle far away costs no
+/// memory), which keeps "successor" meaning "the next occupied layer", the only one besides its
+/// own that an owner's partners can lie in.
 fn slabs(grid: &Grid, positions: &[DVec3]) -> (Vec<u32>, u32) {
     let axis = grid.slab_axis;
     let layer_of = |x: &DVec3| grid.cell_of(*x)[axis];
     let slab = |s: i64| u32::try_from(s).expect("fewer than 2^32 slabs");
     if let Some(count) = grid.axes[axis].2 {
-        // An odd count of five or more: the last two layers form one slab, so that the slabs
-        // pair up into two colour phases (a lone last slab would run by itself, one core idle).
-        let last = if count >= 5 && count % 2 == 1 {
-            count - 2
-        } else {
-            count - 1
-        };
         return (
-            positions
-                .iter()
-                .map(|x| slab(layer_of(x).min(last)))
-                .collect(),
-            slab(last + 1),
+            positions.iter().map(|x| slab(layer_of(x))).collect(),
+            slab(count),
         );
     }
     let mut layers: Vec<i64> = positions.iter().map(layer_of).collect();
@@ -644,7 +646,7 @@ fn slabs(grid: &Grid, positions: &[DVec3]) -> (Vec<u32>, u32) {
 }
 
 /// The colour phases: even slabs, then odd slabs; on a wrapping axis with an odd count (three
-/// slabs: see [`slabs`]) the last slab (an even one, whose successor is slab 0) runs alone in a
+/// slabs: see [`Grid::new`]) the last slab (an even one, whose successor is slab 0) runs alone in a
 /// third phase.
 fn colour_phases(slab_count: u32, wrapping: bool) -> Vec<Vec<u32>> {
     let lonely_last = wrapping && slab_count % 2 == 1;
@@ -738,10 +740,16 @@ mod tests {
     #[test]
     fn finds_exactly_the_minimum_image_pairs_in_a_periodic_box() {
         // Random spheres of radius 1 in a box periodic in x and y, open in z, with 3, 4, 5 and 7
-        // cells across x (3 cells need a third colour phase; 5 and 7 merge their last two layers
-        // into one slab): the list must equal the O(n²) definition with minimum-image distances,
-        // including pairs across the faces, and the colouring must stay sound across the wrap.
-        for (length_x, cells_x) in [(7.0, 3), (9.3, 4), (11.6, 5), (16.2, 7)] {
+        // cells' room across x (3 cells need a third colour phase; 5 and 7 become 4 and 6 wider
+        // layers, for two phases of equal slabs): the list must equal the O(n²) definition with
+        // minimum-image distances, including pairs across the faces, and the colouring must stay
+        // sound across the wrap.
+        for (length_x, room_x) in [(7.0, 3), (9.3, 4), (11.6, 5), (16.2, 7)] {
+            let cells_x = if room_x >= 5 && room_x % 2 == 1 {
+                room_x - 1
+            } else {
+                room_x
+            };
             let periodic = Periodic {
                 lower: DVec3::new(-2.0, 1.0, 0.0),
                 length: [Some(length_x), Some(7.0), None],
@@ -773,14 +781,7 @@ mod tests {
             assert_colouring_is_sound(&list, positions.len());
             assert_eq!(list.phases.len(), if cells_x == 3 { 3 } else { 2 });
             let slab_count = list.slab_offsets.len() - 1;
-            assert_eq!(
-                slab_count as i64,
-                if cells_x >= 5 && cells_x % 2 == 1 {
-                    cells_x - 1
-                } else {
-                    cells_x
-                }
-            );
+            assert_eq!(slab_count as i64, cells_x);
             // The owners flagged for the minimum image are exactly those with a partner whose
             // plain difference is not its minimum image.
             let crossing: Vec<bool> = (0..positions.len())
