@@ -79,8 +79,8 @@ pub struct PassHeat<'a> {
     pub melted: &'a [bool],
     /// Temperatures at the start of the step \[K\].
     pub temperature: &'a [f64],
-    /// Absorbed laser power \[W\].
-    pub laser_power: &'a [f64],
+    /// Absorbed laser power \[W\], with a `[laser]` (without one it is zero).
+    pub laser_power: Option<&'a [f64]>,
     /// Heat capacities [J/K].
     pub heat_capacity: &'a [f64],
     /// Out, per pair slot: the contact conductance [W/K].
@@ -559,16 +559,17 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
     };
     let force_out: Scatter<'_, DVec3, PerParticle> = Scatter::new(&mut forces);
     let lost_out: Scatter<'_, f64, PerParticle> = Scatter::new(&mut dissipated);
-    let heat = heat.map(|h| {
-        (
-            h.model,
-            h.temperature,
-            h.laser_power,
-            h.heat_capacity,
-            Scatter::<_, PerParticle>::new(h.heat_flow),
-            Scatter::<_, PerParticle>::new(h.boundary_flow),
-            Scatter::<_, PerParticle>::new(h.total_conductance),
-        )
+    let heat = heat.map(|h| ParticleHeat {
+        model: h.model,
+        // Decided once per pass: a scene without exchange (or laser) has none to add, and its
+        // boundary flows stay zero.
+        exchange: h.model.has_boundary_exchange(),
+        temperature: h.temperature,
+        laser_power: h.laser_power,
+        heat_capacity: h.heat_capacity,
+        heat_flow: Scatter::new(h.heat_flow),
+        boundary_flow: Scatter::new(h.boundary_flow),
+        total_conductance: Scatter::new(h.total_conductance),
     });
     let visit = |springs: &mut Option<&mut Chunk>, window: &Window<'_>| -> ForceSummary {
         // Known at compile time to be `None` where the instantiation leaves the physics out.
@@ -648,17 +649,24 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
         if let Some(t) = torque {
             t.update(particle, |t| *t += torque_k);
         }
-        let heat_rate = heat.map_or(
-            0.0,
-            |(thermal_model, temperature, laser_power, capacity, flow, boundary, conductance)| {
+        let heat_rate = heat.map_or(0.0, |h| {
+            let mut added = None;
+            if h.exchange {
                 let (outside, outside_conductance) =
-                    thermal::boundary_heat(thermal_model, &model.walls, state, k, temperature[k]);
-                boundary.update(particle, |b| *b = outside);
-                flow.update(particle, |q| *q += outside + laser_power[k]);
-                conductance.update(particle, |g| *g += outside_conductance);
-                conductance.read(particle) / capacity[k]
-            },
-        );
+                    thermal::boundary_heat(h.model, &model.walls, state, k, h.temperature[k]);
+                h.boundary_flow.update(particle, |b| *b = outside);
+                h.total_conductance
+                    .update(particle, |g| *g += outside_conductance);
+                added = Some(outside);
+            }
+            if let Some(laser_power) = h.laser_power {
+                added = Some(added.unwrap_or(0.0) + laser_power[k]);
+            }
+            if let Some(added) = added {
+                h.heat_flow.update(particle, |q| *q += added);
+            }
+            h.total_conductance.read(particle) / h.heat_capacity[k]
+        });
         let mut summary = ForceSummary {
             max_heat_rate: heat_rate,
             non_finite_force: (!total.is_finite()).then_some(k),
@@ -684,6 +692,19 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
     particles.dissipated = dissipated;
     summary
 }
+/// The thermal part of the particle pass.
+struct ParticleHeat<'a> {
+    model: &'a ThermalModel,
+    /// `model.has_boundary_exchange()`.
+    exchange: bool,
+    temperature: &'a [f64],
+    laser_power: Option<&'a [f64]>,
+    heat_capacity: &'a [f64],
+    heat_flow: Scatter<'a, f64, PerParticle>,
+    boundary_flow: Scatter<'a, f64, PerParticle>,
+    total_conductance: Scatter<'a, f64, PerParticle>,
+}
+
 /// Overlap of particle `k` with wall `w` \[m\] (positive in contact) and the wall's normal.
 #[inline]
 #[must_use]

@@ -792,7 +792,7 @@ impl Simulation {
                     model,
                     melted,
                     temperature,
-                    laser_power,
+                    laser_power: self.model.laser.is_some().then_some(laser_power.as_slice()),
                     heat_capacity,
                     conductance,
                     heat_flow,
