@@ -6,7 +6,7 @@
 
 /// Hertz contact radius `a = √(r* δ)` (M.40) \[m\]; 0 without overlap.
 #[must_use]
-#[inline]
+#[inline(always)]
 pub fn contact_radius(effective_radius: f64, overlap: f64) -> f64 {
     if overlap > 0.0 {
         (effective_radius * overlap).sqrt()

@@ -282,7 +282,7 @@ impl ThermalState {
 /// Conductance of the contact between particles `a` and `b` at `overlap` \[m\] (M.41, M.42) [W/K];
 /// 0 without overlap.
 #[must_use]
-#[inline]
+#[inline(always)] // in the pair pass, where √(r* δ) is shared with the contact laws
 pub fn pair_conductance(
     model: &ThermalModel,
     particles: &Particles,
