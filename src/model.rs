@@ -543,7 +543,9 @@ fn thermal_model(scene: &Scene, config: &ThermalConfig) -> ThermalModel {
         // θ = 1/2: half the largest monotone substep, a margin for the radiation conductance,
         // which grows with a temperature that rises within the step (contact ones are fixed).
         substep_fraction: config.substep_fraction.unwrap_or(0.5),
+        harmonic_conductivities: Vec::new(),
     }
+    .tabulated()
 }
 
 fn laser(config: &LaserConfig, smallest_radius: f64) -> Laser {

@@ -77,18 +77,33 @@ pub struct ThermalModel {
     pub initial_temperature: f64,
     /// θ of (M.49): a substep is at most θ times the smallest `C_i / G_i`; `0 < θ ≤ 1`.
     pub substep_fraction: f64,
+    /// `k*` of every pair of materials, `[a * materials.len() + b]`, derived from `materials` by
+    /// [`ThermalModel::tabulated`] (so that the pair pass divides nothing).
+    pub harmonic_conductivities: Vec<f64>,
 }
 
 impl ThermalModel {
-    /// `k* = 2 k_a k_b / (k_a + k_b)` of materials a and b [W/(m·K)] (M.41).
+    /// The model with its per-pair tables derived from `materials`; every model is built with
+    /// it, since the tables are what the pair pass reads.
+    #[must_use]
+    pub fn tabulated(mut self) -> Self {
+        let conductivities: Vec<f64> = self.materials.iter().map(|m| m.conductivity).collect();
+        self.harmonic_conductivities = conductivities
+            .iter()
+            .flat_map(|&ka| {
+                conductivities
+                    .iter()
+                    .map(move |&kb| 2.0 * ka * kb / (ka + kb))
+            })
+            .collect();
+        self
+    }
+
+    /// `k* = 2 k_a k_b / (k_a + k_b)` of materials a and b [W/(m·K)] (M.41), from the table.
     #[must_use]
     #[inline]
     pub fn harmonic_conductivity(&self, a: u16, b: u16) -> f64 {
-        let (ka, kb) = (
-            self.materials[usize::from(a)].conductivity,
-            self.materials[usize::from(b)].conductivity,
-        );
-        2.0 * ka * kb / (ka + kb)
+        self.harmonic_conductivities[usize::from(a) * self.materials.len() + usize::from(b)]
     }
 
     /// Whether particles exchange heat with anything outside the bed (isothermal walls, gas,
