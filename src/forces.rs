@@ -571,7 +571,9 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
         boundary_flow: Scatter::new(h.boundary_flow),
         total_conductance: Scatter::new(h.total_conductance),
     });
-    let visit = |springs: &mut Option<&mut Chunk>, window: &Window<'_>| -> ForceSummary {
+    let visit = |summary: &mut ForceSummary,
+                 springs: &mut Option<&mut Chunk>,
+                 window: &Window<'_>| {
         // Known at compile time to be `None` where the instantiation leaves the physics out.
         let mut springs = springs.as_deref_mut().filter(|_| ROTATION);
         let (omega, torque) = (
@@ -667,13 +669,12 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
             }
             h.total_conductance.read(particle) / h.heat_capacity[k]
         });
-        let mut summary = ForceSummary {
-            max_heat_rate: heat_rate,
-            non_finite_force: (!total.is_finite()).then_some(k),
-            ..ForceSummary::default()
-        };
+        summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
+        // The chunk's particles come in ascending order: the first is the lowest.
+        if !total.is_finite() && summary.non_finite_force.is_none() {
+            summary.non_finite_force = Some(k);
+        }
         summary.observe_overlap(max_overlap / state.radius[k], k);
-        summary
     };
     let summary = scatter::for_each_particle(
         count,

@@ -289,11 +289,13 @@ impl<T> Scatter<'_, T, PerSlab> {
     }
 }
 
-/// Calls `visit(state, window)` once for every particle `0..count`, with a window allowing that
-/// particle alone. The particles go in chunks of `chunk_len` consecutive indices: a chunk's
-/// particles in ascending order with the chunk's own `states[c]` (so a visit may keep per-chunk
-/// data sorted by particle), the chunks in parallel when `parallel`. The results are reduced
-/// with `merge` (associative and commutative, for the result not to depend on the thread count).
+/// Calls `visit(partial, state, window)` once for every particle `0..count`, with a window
+/// allowing that particle alone. The particles go in chunks of `chunk_len` consecutive indices:
+/// a chunk's particles in ascending order with the chunk's own `states[c]` (so a visit may keep
+/// per-chunk data sorted by particle) and the chunk's own `partial` (from `identity`), which the
+/// visit updates in place, the chunks in parallel when `parallel`. The partials are reduced with
+/// `merge` (associative and commutative, for the result not to depend on the thread count), as
+/// in [`crate::neighbor::NeighborList::for_each_owner`].
 ///
 /// # Panics
 /// If `states` does not hold one state per chunk.
@@ -309,7 +311,7 @@ pub fn for_each_particle<S, R, V, M>(
 where
     S: Send,
     R: Clone + Send + Sync,
-    V: Fn(&mut S, &Window<'_>) -> R + Sync,
+    V: Fn(&mut R, &mut S, &Window<'_>) + Sync,
     M: Fn(R, R) -> R + Sync + Send,
 {
     use rayon::prelude::*;
@@ -323,7 +325,7 @@ where
         for k in c * chunk_len..((c + 1) * chunk_len).min(count) {
             // SAFETY: every particle is visited exactly once.
             let window = unsafe { Window::particle(k) };
-            partial = merge(partial, visit(state, &window));
+            visit(&mut partial, state, &window);
         }
         partial
     };
