@@ -493,8 +493,9 @@ fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
             t1.laser_energy,
             t1.boundary_energy
         );
-        // Since the start of this run (a resumed run starts with the energies it had).
-        let stored = t1.enthalpy - t0.enthalpy;
+        // Since the start of this run (a resumed run starts with the energies it had), particle
+        // by particle (`ThermalDiagnostics::stored`).
+        let stored = t1.stored - t0.stored;
         let supplied =
             (t1.laser_energy - t0.laser_energy) + (t1.boundary_energy - t0.boundary_energy);
         say!(

@@ -17,7 +17,7 @@ use crate::scene::{
     Axis, ConductionConfig, CriterionConfig, LaserConfig, MeltingRule, PathConfig, Scene,
     SceneError, ThermalConfig, Violation, validate::lattice_sites,
 };
-use crate::thermal::{ConductionModel, ThermalMaterial, ThermalModel};
+use crate::thermal::{ConductionModel, InitialRegion, ThermalMaterial, ThermalModel};
 
 /// Elastic data of one material (SI).
 #[derive(Debug, Clone, PartialEq)]
@@ -540,6 +540,15 @@ fn thermal_model(scene: &Scene, config: &ThermalConfig) -> ThermalModel {
             .map(|r| r.environment_temperature_k),
         wall_temperatures: scene.walls.iter().map(|w| w.temperature_k).collect(),
         initial_temperature: config.initial_temperature_k,
+        initial_regions: config
+            .initial_region
+            .iter()
+            .map(|r| InitialRegion {
+                lower: DVec3::from_array(r.min_corner_m),
+                upper: DVec3::from_array(r.max_corner_m),
+                temperature: r.temperature_k,
+            })
+            .collect(),
         // θ = 1/2: half the largest monotone substep, a margin for the radiation conductance,
         // which grows with a temperature that rises within the step (contact ones are fixed).
         substep_fraction: config.substep_fraction.unwrap_or(0.5),

@@ -73,6 +73,9 @@ pub struct Removed {
     pub dissipated_energy: f64,
     /// Their enthalpy when removed.
     pub enthalpy: f64,
+    /// Their enthalpy when removed less their enthalpy at the start of the run in which they
+    /// left (the heat balance's share of them).
+    pub enthalpy_change: f64,
     /// The laser energy they had absorbed.
     pub laser_energy: f64,
     /// The boundary heat they had received.
@@ -267,6 +270,12 @@ pub struct ThermalDiagnostics {
     pub time_step_ratio: f64,
     /// Heat balance since the start of this run: (stored − supplied) / scale (M.48).
     pub heat_residual: f64,
+    /// `Σ (E_i − E_i(start))` over the particles, with those removed at their removal \[J\]:
+    /// the heat stored since the start of the run (less what it was at the start, for the
+    /// removals before it).
+    pub stored: f64,
+    /// `½ Σ |E_i − E_i(start)|` \[J\]: the heat that changed hands since the start of the run.
+    pub exchanged: f64,
 }
 
 impl Diagnostics {
@@ -307,6 +316,10 @@ impl Simulation {
             time: 0.0,
         };
         sim.rebuild_neighbors();
+        if sim.model.deposition.is_none() {
+            // With a deposition the run starts from the settled bed (`restart_clock`).
+            sim.apply_initial_regions();
+        }
         sim.force_summary = sim.compute_forces(false);
         sim.clear_tangential_history();
         // The t = 0 evaluation did no work over time; the energy the run starts with already
@@ -322,7 +335,22 @@ impl Simulation {
         self.step = 0;
         self.time = 0.0;
         self.particles.dissipated.fill(0.0);
+        self.apply_initial_regions();
         self.mark_start();
+    }
+
+    /// Gives the particles in the scene's initial regions (`[[thermal.initial_region]]`) their
+    /// temperatures, at the start of the run; the others keep theirs. The next force pass
+    /// computes the heat flows from them.
+    fn apply_initial_regions(&mut self) {
+        let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) else {
+            return;
+        };
+        for (k, x) in self.particles.position.iter().enumerate() {
+            if model.initial_regions.iter().any(|r| r.contains(*x)) {
+                state.set_temperature(k, model.initial_temperature_at(*x));
+            }
+        }
     }
 
     /// Removes the particles whose centre has left `[domain]` (M.78), counting them and the
@@ -349,6 +377,7 @@ impl Simulation {
             removed.dissipated_energy += p.dissipated[k];
             if let Some(t) = &self.thermal {
                 removed.enthalpy += t.enthalpy[k];
+                removed.enthalpy_change += t.enthalpy[k] - t.start_enthalpy[k];
                 removed.laser_energy += t.laser_energy[k];
                 removed.boundary_energy += t.boundary_energy[k];
             }
@@ -385,6 +414,9 @@ impl Simulation {
 
     /// Takes the current state as the reference of the run's energy balances.
     fn mark_start(&mut self) {
+        if let Some(t) = &mut self.thermal {
+            t.mark_start();
+        }
         let d = self.diagnostics();
         self.peak_overlap_ratio = d.max_overlap_ratio;
         self.start = StartEnergies {
@@ -968,19 +1000,24 @@ impl Simulation {
             d.kinetic_energy += rotation.kinetic_energy(p);
             d.elastic_energy += self.tangential.spring_energy() + rotation.wall_spring_energy();
         }
-        d.thermal = self.thermal.as_ref().map(|t| ThermalDiagnostics {
-            enthalpy: t.total_enthalpy() + self.removed.enthalpy,
-            laser_energy: t.total_laser_energy() + self.removed.laser_energy,
-            boundary_energy: t.total_boundary_energy() + self.removed.boundary_energy,
-            max_temperature: t
-                .temperature
-                .iter()
-                .copied()
-                .fold(f64::NEG_INFINITY, f64::max),
-            melted: t.melted.iter().filter(|m| **m).count(),
-            substeps: t.substeps,
-            time_step_ratio: self.model.dt * self.force_summary.max_heat_rate,
-            heat_residual: 0.0,
+        d.thermal = self.thermal.as_ref().map(|t| {
+            let (stored, exchanged) = t.enthalpy_change();
+            ThermalDiagnostics {
+                enthalpy: t.total_enthalpy() + self.removed.enthalpy,
+                laser_energy: t.total_laser_energy() + self.removed.laser_energy,
+                boundary_energy: t.total_boundary_energy() + self.removed.boundary_energy,
+                max_temperature: t
+                    .temperature
+                    .iter()
+                    .copied()
+                    .fold(f64::NEG_INFINITY, f64::max),
+                melted: t.melted.iter().filter(|m| **m).count(),
+                substeps: t.substeps,
+                time_step_ratio: self.model.dt * self.force_summary.max_heat_rate,
+                heat_residual: 0.0,
+                stored: stored + self.removed.enthalpy_change,
+                exchanged,
+            }
         });
         d.peak_overlap_ratio = self.peak_overlap_ratio.max(d.max_overlap_ratio);
         d.stability_ratio = self.model.dt / tightest;
@@ -1013,14 +1050,17 @@ impl Simulation {
         .fold(f64::MIN_POSITIVE, |m, x| m.max(x.abs()));
         d.energy_residual = created / scale;
         if let (Some(t), Some(t0)) = (&mut d.thermal, &start.thermal) {
-            let stored = t.enthalpy - t0.enthalpy;
+            let stored = t.stored - t0.stored;
             let supplied =
                 (t.laser_energy - t0.laser_energy) + (t.boundary_energy - t0.boundary_energy);
+            // The heat supplied, stored or moved between particles: conduction alone supplies
+            // and stores nothing, and its balance is measured against what it moved.
             let scale = t
                 .laser_energy
                 .abs()
                 .max(t.boundary_energy.abs())
                 .max(stored.abs())
+                .max(t.exchanged)
                 .max(t0.enthalpy.abs() * f64::EPSILON);
             t.heat_residual = (stored - supplied) / scale;
         }

@@ -386,12 +386,43 @@ const THERMAL_CASES: &[(&str, &str, &[&str])] = &[
         "temperature_k = -5\n[thermal]",
         &["walls[0].temperature_k = -5: must be > 0"],
     ),
+    (
+        "[thermal.radiation]",
+        "[[thermal.initial_region]]\nmin_corner_m = [-inf, -inf, 1e-4]\nmax_corner_m = [inf, inf, inf]\ntemperature_k = 0\n[thermal.radiation]",
+        &["thermal.initial_region[0].temperature_k = 0: must be > 0"],
+    ),
+    (
+        "[thermal.radiation]",
+        "[[thermal.initial_region]]\nmin_corner_m = [-inf, nan, 1e-4]\nmax_corner_m = [inf, inf, inf]\ntemperature_k = 1000\n[thermal.radiation]",
+        &[
+            "thermal.initial_region[0].min_corner_m = [-inf, NaN, 0.0001]: every component must be a number",
+        ],
+    ),
+    (
+        "[thermal.radiation]",
+        "[[thermal.initial_region]]\nmin_corner_m = [-inf, -inf, 1e-4]\nmax_corner_m = [inf, inf, 1e-4]\ntemperature_k = 1000\n[thermal.radiation]",
+        &[
+            "thermal.initial_region[0].max_corner_m = [inf, inf, 0.0001]: must exceed min_corner_m = [-inf, -inf, 0.0001] along every axis",
+        ],
+    ),
+    (
+        "[thermal.radiation]",
+        "[[thermal.initial_region]]\nmin_corner_m = [-inf, -inf, 1e-4]\nmax_corner_m = [inf, inf, inf]\ntemperature = 1000\n[thermal.radiation]",
+        &["thermal.initial_region", "unknown field `temperature`"],
+    ),
 ];
 
 #[test]
 fn the_base_scenes_are_valid() {
     Scene::from_toml(BASE).expect("base scene");
     Scene::from_toml(&thermal_base()).expect("thermal base scene");
+}
+
+/// An initial region may be unbounded along axes (TOML's `inf`), like LIGGGHTS' `INF`.
+#[test]
+fn an_initial_region_with_infinite_bounds_is_valid() {
+    let text = thermal_base().replacen("[thermal.radiation]", "[[thermal.initial_region]]\nmin_corner_m = [-inf, -inf, 1e-4]\nmax_corner_m = [inf, inf, inf]\ntemperature_k = 1000\n[thermal.radiation]", 1);
+    Scene::from_toml(&text).expect("scene with an initial region");
 }
 
 #[test]

@@ -619,6 +619,8 @@ pub fn read_last_frame(path: &Path) -> Result<SavedRun> {
                         mechanical_energy: r[1],
                         dissipated_energy: r[2],
                         enthalpy: r[3],
+                        // The resumed run's heat balance starts anew (its start subtracts it).
+                        enthalpy_change: 0.0,
                         laser_energy: r[4],
                         boundary_energy: r[5],
                     }

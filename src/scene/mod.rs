@@ -526,6 +526,25 @@ pub struct ThermalConfig {
     pub convection: Option<ConvectionConfig>,
     /// `[thermal.radiation]`: grey-body radiation to the surroundings.
     pub radiation: Option<RadiationConfig>,
+    /// `[[thermal.initial_region]]`: boxes whose particles start at their own temperature.
+    #[serde(default)]
+    pub initial_region: Vec<InitialRegionConfig>,
+}
+
+/// `[[thermal.initial_region]]`: the particles whose centre lies in this box (bounds included)
+/// at the start of the run start at `temperature_k` instead of `initial_temperature_k`; where
+/// regions overlap, the later one wins, as successive `set region ... property/atom Temp` do in
+/// LIGGGHTS. The start of the run is t = 0: after the `[deposition]` if the scene has one, so
+/// that a region can name the top of the settled bed.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitialRegionConfig {
+    /// Lower corner \[m\]; `-inf` leaves an axis unbounded below (TOML writes it `-inf`).
+    pub min_corner_m: [f64; 3],
+    /// Upper corner \[m\]; `inf` leaves an axis unbounded above.
+    pub max_corner_m: [f64; 3],
+    /// Initial temperature of the particles in the box \[K\], `> 0`.
+    pub temperature_k: f64,
 }
 
 /// Contact conductance models.

@@ -492,6 +492,32 @@ fn validate_thermal(c: &mut Checker, scene: &Scene) {
         "thermal.initial_temperature_k",
         thermal.initial_temperature_k,
     );
+    for (k, region) in thermal.initial_region.iter().enumerate() {
+        let key = |name: &str| format!("thermal.initial_region[{k}].{name}");
+        c.positive(&key("temperature_k"), region.temperature_k);
+        for (name, corner) in [
+            ("min_corner_m", region.min_corner_m),
+            ("max_corner_m", region.max_corner_m),
+        ] {
+            if corner.iter().any(|x| x.is_nan()) {
+                c.fail(
+                    key(name),
+                    format!("{corner:?}"),
+                    "every component must be a number (±inf leaves an axis unbounded)",
+                );
+            }
+        }
+        if (0..3).any(|a| region.max_corner_m[a] <= region.min_corner_m[a]) {
+            c.fail(
+                key("max_corner_m"),
+                format!("{:?}", region.max_corner_m),
+                format!(
+                    "must exceed min_corner_m = {:?} along every axis",
+                    region.min_corner_m
+                ),
+            );
+        }
+    }
     if let Some(theta) = thermal.substep_fraction {
         if c.finite("thermal.substep_fraction", theta) && !(theta > 0.0 && theta <= 1.0) {
             c.fail(

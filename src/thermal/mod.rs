@@ -26,6 +26,7 @@
 pub mod conduction;
 pub mod losses;
 
+use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::model::Wall;
@@ -73,8 +74,11 @@ pub struct ThermalModel {
     pub radiation: Option<f64>,
     /// Per wall: its fixed temperature \[K\], or `None` for an adiabatic wall.
     pub wall_temperatures: Vec<Option<f64>>,
-    /// Initial temperature of every particle \[K\].
+    /// Initial temperature of every particle outside `initial_regions` \[K\].
     pub initial_temperature: f64,
+    /// Boxes whose particles start at their own temperature, the later winning where they
+    /// overlap (applied at the start of the run: [`ThermalModel::initial_temperature_at`]).
+    pub initial_regions: Vec<InitialRegion>,
     /// θ of (M.49): a substep is at most θ times the smallest `C_i / G_i`; `0 < θ ≤ 1`.
     pub substep_fraction: f64,
     /// `k*` of every pair of materials, `[a * materials.len() + b]`, derived from `materials` by
@@ -82,7 +86,36 @@ pub struct ThermalModel {
     pub harmonic_conductivities: Vec<f64>,
 }
 
+/// A box of particles with their own initial temperature (`[[thermal.initial_region]]`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InitialRegion {
+    /// Lower corner \[m\] (components may be −∞).
+    pub lower: DVec3,
+    /// Upper corner \[m\] (components may be +∞).
+    pub upper: DVec3,
+    /// Temperature \[K\].
+    pub temperature: f64,
+}
+
+impl InitialRegion {
+    /// Whether `x` lies in the box, bounds included.
+    #[must_use]
+    pub fn contains(&self, x: DVec3) -> bool {
+        x.cmpge(self.lower).all() && x.cmple(self.upper).all()
+    }
+}
+
 impl ThermalModel {
+    /// The initial temperature of a particle centred at `x` \[K\]: that of the last initial
+    /// region holding `x`, or `initial_temperature`.
+    #[must_use]
+    pub fn initial_temperature_at(&self, x: DVec3) -> f64 {
+        self.initial_regions
+            .iter()
+            .rev()
+            .find(|r| r.contains(x))
+            .map_or(self.initial_temperature, |r| r.temperature)
+    }
     /// The model with its per-pair tables derived from `materials`; every model is built with
     /// it, since the tables are what the pair pass reads.
     #[must_use]
@@ -146,6 +179,10 @@ pub struct ThermalState {
     pub laser_energy: Vec<f64>,
     /// Per particle: heat received from walls, gas and surroundings since the start \[J\].
     pub boundary_energy: Vec<f64>,
+    /// Per particle: the enthalpy at the start of this run \[J\] ([`ThermalState::mark_start`]).
+    /// The heat balance compares particle by particle: a sum of small changes, not the
+    /// difference of two large sums, whose round-off would swamp a bed's conduction.
+    pub start_enthalpy: Vec<f64>,
     /// Substeps taken in the last step.
     pub substeps: u32,
     /// Most substeps taken in one step so far.
@@ -169,6 +206,25 @@ impl ThermalState {
         select(&mut self.boundary_flow, order);
         select(&mut self.laser_energy, order);
         select(&mut self.boundary_energy, order);
+        select(&mut self.start_enthalpy, order);
+    }
+
+    /// Makes the current enthalpies the start of the heat balance.
+    pub fn mark_start(&mut self) {
+        self.start_enthalpy.clone_from(&self.enthalpy);
+    }
+
+    /// Since the start of this run, summed in index order (reproducible): `(Σ ΔE_i, ½ Σ |ΔE_i|)`
+    /// \[J\], the heat stored and the heat that changed hands (moved between particles or came
+    /// in), with `ΔE_i = E_i − E_i(start)`.
+    #[must_use]
+    pub fn enthalpy_change(&self) -> (f64, f64) {
+        self.enthalpy
+            .iter()
+            .zip(&self.start_enthalpy)
+            .fold((0.0, 0.0), |(stored, moved), (e, e0)| {
+                (stored + (e - e0), moved + 0.5 * (e - e0).abs())
+            })
     }
 }
 
@@ -260,6 +316,7 @@ impl ThermalState {
         state.boundary_flow = vec![0.0; n];
         state.laser_energy = vec![0.0; n];
         state.boundary_energy = vec![0.0; n];
+        state.mark_start();
         state
     }
 
