@@ -4,7 +4,10 @@
 # restart would carry them, a dump cannot), run 500 + 5000 steps, and the script prints, for each,
 # the particle-particle coordination with overlap > 0, the wall contacts per particle and the
 # largest overlap at the end (LIGGGHTS' numbers by shared/bench/liggghts/coord.py, which needs
-# numpy and scipy).
+# numpy and scipy). Then the heat variant (in.bench -var heat 1 against
+# scenes/liggghts_bed_20k_heat.toml: the top of the bed, z >= 180 um, at 1000 K, the rest at 300 K,
+# conduction only): the heat that reached the initially cold particles, how many of them warmed
+# and of the hot ones cooled, and how far each particle's final temperature is from LIGGGHTS' (h5py).
 #
 # usage: benches/liggghts_parity.sh [LIGGGHTS_BENCH_DIR]   (default ../shared/bench/liggghts)
 set -euo pipefail
@@ -45,3 +48,33 @@ echo "am-sim, from the dump:"
     /now: largest overlap/ { overlap = $4 }
     END { printf "contacts(overlap>0)=%d Z=%.3f | wall contacts=%d (%.3f/particle) | max overlap=%s m\n",
           pp, 2 * pp / 19200, wall, wall / 19200, overlap }'
+
+# The heat variant: LIGGGHTS writes every particle's temperature at the end, am-sim its last frame.
+{ cat "$WORK"/in.parity; echo "write_dump all custom end_T_\${tag}.dump id z f_Temp modify format '%d %.12e %.12e'"; } > "$WORK"/in.heat
+(cd "$WORK" && mpirun --allow-run-as-root -np 2 liggghts -in in.heat -var tag 20k -var heat 1 \
+    -var nsteps 5000 -screen none -log heat.log)
+{ sed "s|file = \"data/|file = \"$PWD/scenes/data/|" scenes/liggghts_bed_20k_heat.toml
+  printf '\n[output]\nfile = "heat.h5"\nevery_steps = 5500\n'; } > "$WORK"/am_sim_heat.toml
+(cd "$WORK" && "$AM_SIM" am_sim_heat.toml --quiet > /dev/null)
+python3 - "$PWD/scenes/data/liggghts_start_20k.dump.gz" "$WORK/end_T_20k.dump" "$WORK/heat.h5" <<'PY'
+import gzip, sys
+import h5py, numpy as np
+start = gzip.open(sys.argv[1], "rt").read().split("\n")
+k = next(i for i, l in enumerate(start) if l.startswith("ITEM: ATOMS"))
+rows = sorted((int(r[0]), float(r[3])) for r in (l.split() for l in start[k + 1:]) if r)
+hot = np.array([z >= 1.8e-4 for _, z in rows])          # in.bench: region hot ... 1.8e-4 INF
+end = open(sys.argv[2]).read().split("\n")
+k = next(i for i, l in enumerate(end) if l.startswith("ITEM: ATOMS"))
+lig = dict((int(r[0]), float(r[2])) for r in (l.split() for l in end[k + 1:]) if r)
+lig = np.array([lig[i] for i, _ in rows])
+frames = h5py.File(sys.argv[3])["frames"]
+last = frames[sorted(frames)[-1]]
+# am-sim numbers the imported particles 0.. in the order of their file ids.
+am = np.empty(len(rows)); am[last["id"][()]] = last["temperature"][()]
+for name, t in (("LIGGGHTS", lig), ("am-sim", am)):
+    print(f"{name}: heat into the cold part {(t[~hot] - 300).sum():.4e} K (sum over particles), "
+          f"{(t[~hot] > 300 + 1e-6).sum()} of {(~hot).sum()} warmed, "
+          f"{(t[hot] < 1000 - 1e-6).sum()} of {hot.sum()} cooled, mean T {t.mean():.4f} K")
+d = am - lig
+print(f"am-sim - LIGGGHTS per particle: rms {np.sqrt((d * d).mean()):.3f} K, max {abs(d).max():.2f} K")
+PY

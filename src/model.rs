@@ -528,6 +528,7 @@ fn thermal_model(scene: &Scene, config: &ThermalConfig) -> ThermalModel {
         conduction: match config.conduction {
             ConductionConfig::BatchelorObrien => ConductionModel::BatchelorObrien,
             ConductionConfig::ThermalPipe => ConductionModel::ThermalPipe,
+            ConductionConfig::OverlapArea => ConductionModel::OverlapArea,
             ConductionConfig::None => ConductionModel::None,
         },
         convection: config

@@ -228,6 +228,16 @@ fn two_spheres_equilibrate_with_the_reduced_capacity_time_constant() {
             "thermal_pipe",
             k * std::f64::consts::PI * a * a / (ra + rb - overlap),
         ),
+        (
+            // LIGGGHTS' heat/gran/conduction: 2 k √A over the intersection circle, whose
+            // radius follows from Pythagoras in either sphere.
+            "overlap_area",
+            {
+                let d = ra + rb - overlap;
+                let x = (d * d + ra * ra - rb * rb) / (2.0 * d);
+                2.0 * k * (std::f64::consts::PI * (ra * ra - x * x)).sqrt()
+            },
+        ),
     ] {
         let tau = reduced / h;
         let dt = tau / 1e4; // Euler's relative error in τ ≈ dt/(2τ) = 5e-5

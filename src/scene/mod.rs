@@ -555,6 +555,9 @@ pub enum ConductionConfig {
     BatchelorObrien,
     /// `H = k̄ π a² / d` (the thermal pipe of Quintana-Ruiz & Campello 2020).
     ThermalPipe,
+    /// `H = 2 k* √(π a_g²)` over the geometric intersection of the spheres (LIGGGHTS'
+    /// `heat/gran/conduction`).
+    OverlapArea,
     /// No conduction through contacts.
     None,
 }

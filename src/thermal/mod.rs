@@ -59,6 +59,8 @@ pub enum ConductionModel {
     BatchelorObrien,
     /// `H = k̄ π a² / d` (M.42).
     ThermalPipe,
+    /// `H = 2 k* √(π a_g²)` over the spheres' geometric intersection (M.79), as LIGGGHTS.
+    OverlapArea,
 }
 
 /// Resolved thermal parameters of a run.
@@ -372,6 +374,12 @@ pub fn pair_conductance(
         ConductionModel::None => 0.0,
         // 2 k* a with k* from the per-material-pair table: no division in the hot loop.
         ConductionModel::BatchelorObrien => 2.0 * model.harmonic_conductivity(ma, mb) * contact,
+        ConductionModel::OverlapArea => {
+            let (ra, rb) = (particles.radius[a], particles.radius[b]);
+            2.0 * model.harmonic_conductivity(ma, mb)
+                * std::f64::consts::PI.sqrt()
+                * conduction::intersection_radius(ra, rb, ra + rb - overlap)
+        }
         ConductionModel::ThermalPipe => {
             let (ra, rb) = (particles.radius[a], particles.radius[b]);
             let (ka, kb) = (
@@ -433,6 +441,14 @@ fn wall_conductance(
             k_particle,
             contact,
             centre_distance.max(f64::MIN_POSITIVE),
+        ),
+        // The circle where the sphere cuts the wall's plane: a_g² = r² − s².
+        ConductionModel::OverlapArea => conduction::overlap_area(
+            k_particle,
+            k_wall,
+            (radius * radius - centre_distance * centre_distance)
+                .max(0.0)
+                .sqrt(),
         ),
     }
 }
