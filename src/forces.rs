@@ -4,7 +4,7 @@
 //!    ([`NeighborList::for_each_owner`]): each pair is evaluated once by its owner, which calls
 //!    the pure contact laws and adds the result to both particles (Newton's third law), together
 //!    with the torques, the energy the pair lost and, with `[thermal]`, the heat it conducts. The
-//!    pair's own history (bond state, tangential spring, conductance) lives in its slot.
+//!    pair's own history (bond state, tangential spring) lives in its slot.
 //! 2. **Particle pass** (parallel over particles): gravity, wall contacts, boundary heat and the
 //!    per-step checks, each particle writing only its own entries.
 //!
@@ -69,8 +69,8 @@ fn unit_normal(separation: DVec3, distance: f64) -> DVec3 {
     }
 }
 
-/// What the force pass needs and fills for scenes with `[thermal]`: the contact conductances
-/// and the first thermal substep's heat balance (M.47), computed with the forces.
+/// What the force pass needs and fills for scenes with `[thermal]`: the first thermal substep's
+/// heat balance (M.47), computed with the forces.
 #[derive(Debug)]
 pub struct PassHeat<'a> {
     /// Thermal parameters.
@@ -83,8 +83,6 @@ pub struct PassHeat<'a> {
     pub laser_power: Option<&'a [f64]>,
     /// Heat capacities [J/K].
     pub heat_capacity: &'a [f64],
-    /// Out, per pair slot: the contact conductance [W/K].
-    pub conductance: &'a mut [f64],
     /// Out: net heat flow \[W\].
     pub heat_flow: &'a mut [f64],
     /// Out: heat flow from walls, gas and surroundings \[W\].
@@ -192,7 +190,7 @@ fn tangential_step(
 }
 
 /// The force pass (steps 4-5 of the step order): every particle's force, with rotation its
-/// torque, with `[thermal]` its first-substep heat flows and every slot's conductance; bond states
+/// torque, with `[thermal]` its first-substep heat flows and total conductances; bond states
 /// (`states`, per slot, given when the scene has a bond law) and tangential histories advance by
 /// one step. Returns what the per-step guards need. `cleared`: the forces and torques are
 /// already zero (the step's opening pass, `integrate::kick_drift`, leaves them so), and the
@@ -239,7 +237,6 @@ pub fn compute(
             model: h.model,
             melted: h.melted,
             temperature: h.temperature,
-            conductance: Scatter::new(h.conductance),
             heat_flow: Scatter::new(h.heat_flow),
             total_conductance: Scatter::new(h.total_conductance),
         });
@@ -310,7 +307,6 @@ struct HeatTargets<'a> {
     model: &'a ThermalModel,
     melted: &'a [bool],
     temperature: &'a [f64],
-    conductance: Scatter<'a, f64, PerSlot>,
     heat_flow: Scatter<'a, f64, PerParticle>,
     total_conductance: Scatter<'a, f64, PerParticle>,
 }
@@ -391,11 +387,6 @@ fn owner_pairs<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                     targets
                         .lost
                         .update(partner, |l| *l += 0.5 * held.spring_energy);
-                }
-            }
-            if let Some(h) = heat {
-                if h.conductance.read(p) != 0.0 {
-                    h.conductance.update(p, |c| *c = 0.0);
                 }
             }
             continue;
@@ -499,7 +490,6 @@ fn owner_pairs<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             heat_a += flow;
             conductance_a += conductance;
             {
-                h.conductance.update(p, |c| *c = conductance);
                 h.heat_flow.update(partner, |q| *q -= flow);
                 h.total_conductance.update(partner, |g| *g += conductance);
             }

@@ -659,7 +659,6 @@ impl Simulation {
                 sim.tangential.set(&sim.neighbors, p, owner, t);
             }
         }
-        sim.update_conductances();
         sim.mark_start();
         Ok(sim)
     }
@@ -797,9 +796,6 @@ impl Simulation {
                     if turned { t.turned() } else { *t }
                 });
         }
-        if let Some(t) = &mut self.thermal {
-            t.conductance = vec![0.0; self.neighbors.pair_count()];
-        }
     }
 
     /// The force pass (steps 4-5). With `[thermal]` it also computes the contact conductances
@@ -812,7 +808,6 @@ impl Simulation {
                 let ThermalState {
                     temperature,
                     melted,
-                    conductance,
                     laser_power,
                     heat_capacity,
                     heat_flow,
@@ -826,7 +821,6 @@ impl Simulation {
                     temperature,
                     laser_power: self.model.laser.is_some().then_some(laser_power.as_slice()),
                     heat_capacity,
-                    conductance,
                     heat_flow,
                     boundary_flow,
                     total_conductance,
@@ -857,18 +851,6 @@ impl Simulation {
         if let Some(rotation) = &mut self.rotation {
             self.tangential.clear();
             rotation.wall_springs.clear();
-        }
-    }
-
-    fn update_conductances(&mut self) {
-        if let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) {
-            thermal::update_conductances(
-                model,
-                self.model.periodic.as_ref(),
-                &self.particles,
-                &self.neighbors,
-                &mut state.conductance,
-            );
         }
     }
 
@@ -911,6 +893,7 @@ impl Simulation {
                     dt: self.model.dt,
                     first_flows,
                     laser_on: self.model.laser.is_some(),
+                    periodic: self.model.periodic.as_ref(),
                 },
             );
         }
@@ -1244,6 +1227,7 @@ impl Simulation {
             1.0 / thermal::max_stiffness(
                 model,
                 &self.model.walls,
+                self.model.periodic.as_ref(),
                 &self.particles,
                 &self.neighbors,
                 &mut state,

@@ -168,7 +168,8 @@ pub struct ThermalState {
     pub melted: Vec<bool>,
     /// Laser power absorbed during the current step \[W\].
     pub laser_power: Vec<f64>,
-    /// Per pair slot of the neighbour list: contact conductance H [W/K] of this step.
+    /// Per pair slot of the neighbour list: contact conductance H [W/K] of this step, stored
+    /// only by a step that takes more than one thermal substep ([`advance`]); stale otherwise.
     pub conductance: Vec<f64>,
     /// Net heat flow into each particle at the start of the current substep \[W\].
     pub(crate) heat_flow: Vec<f64>,
@@ -391,8 +392,9 @@ pub fn pair_conductance(
     }
 }
 
-/// Contact conductances of every pair slot from the current positions (a resumed run needs them
-/// before its first step; a step computes them inside the force pass, with the pair's data at hand).
+/// Contact conductances of every pair slot from the current positions, for the flow passes of
+/// a step's further thermal substeps (the force pass computes the first substep's flows with the
+/// pair's data at hand and keeps none).
 pub fn update_conductances(
     model: &ThermalModel,
     periodic: Option<&crate::periodic::Periodic>,
@@ -453,16 +455,19 @@ fn wall_conductance(
     }
 }
 
-/// Largest `G_i / C_i` over the particles [1/s] (M.49) for the current temperatures and
-/// conductances: its inverse is the smallest thermal time constant.
+/// Largest `G_i / C_i` over the particles [1/s] (M.49) for the current positions and
+/// temperatures: its inverse is the smallest thermal time constant. Fills `state`'s scratch
+/// arrays (conductances, flows).
 #[must_use]
 pub fn max_stiffness(
     model: &ThermalModel,
     walls: &[Wall],
+    periodic: Option<&crate::periodic::Periodic>,
     particles: &Particles,
     list: &NeighborList,
     state: &mut ThermalState,
 ) -> f64 {
+    update_conductances(model, periodic, particles, list, &mut state.conductance);
     heat_flows(model, walls, particles, list, state)
 }
 
@@ -475,7 +480,7 @@ type OwnSlots<'a> = (
 
 /// What [`advance`] needs to know about the step besides the state.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepInfo {
+pub struct StepInfo<'a> {
     /// Mechanical time step \[s\].
     pub dt: f64,
     /// `Some(max G_i / C_i)` [1/s] when the force gather already computed the first substep's
@@ -483,14 +488,19 @@ pub struct StepInfo {
     pub first_flows: Option<f64>,
     /// Whether the scene has a laser (else the laser-energy accumulators are skipped).
     pub laser_on: bool,
+    /// The periodic axes, for the contact conductances of a step that needs more substeps.
+    pub periodic: Option<&'a crate::periodic::Periodic>,
 }
 
-/// Advances the temperatures over one mechanical step `dt` \[s\] by (M.49), using the contact
-/// conductances and laser powers already stored in `state`.
+/// Advances the temperatures over one mechanical step `dt` \[s\] by (M.49), using the laser
+/// powers already stored in `state`.
 ///
 /// Per substep: one pass over the particles computes every heat flow (and, in the first, every
 /// total conductance G_i, which fixes the substep count), a second streams the enthalpy update.
-/// The first pass may already have been made by the force gather (see [`StepInfo`]).
+/// The first pass may already have been made by the force gather (see [`StepInfo`]). Only a step
+/// that needs more than one substep (or has no first pass) stores the contact conductances per
+/// pair slot, computed anew from the positions, for its further flow passes: most steps of a bed
+/// take one substep, and the force pass then keeps no per-slot conductance at all.
 pub fn advance(
     model: &ThermalModel,
     walls: &[Wall],
@@ -503,14 +513,21 @@ pub fn advance(
         dt,
         first_flows,
         laser_on,
+        periodic,
     } = step;
     let n = particles.len();
     let worst = match first_flows {
         Some(worst) => worst,
-        None => heat_flows(model, walls, particles, list, state),
+        None => {
+            update_conductances(model, periodic, particles, list, &mut state.conductance);
+            heat_flows(model, walls, particles, list, state)
+        }
     };
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let substeps = ((dt * worst / model.substep_fraction).ceil() as u32).max(1);
+    if substeps > 1 && first_flows.is_some() {
+        update_conductances(model, periodic, particles, list, &mut state.conductance);
+    }
     let dt_sub = dt / f64::from(substeps);
     for substep in 0..substeps {
         if substep > 0 {
