@@ -347,8 +347,8 @@ impl Simulation {
             return;
         };
         for (k, x) in self.particles.position.iter().enumerate() {
-            if model.initial_regions.iter().any(|r| r.contains(*x)) {
-                state.set_temperature(k, model.initial_temperature_at(*x));
+            if let Some(temperature) = model.region_temperature(*x) {
+                state.set_temperature(k, temperature);
             }
         }
     }

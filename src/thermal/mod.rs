@@ -79,7 +79,7 @@ pub struct ThermalModel {
     /// Initial temperature of every particle outside `initial_regions` \[K\].
     pub initial_temperature: f64,
     /// Boxes whose particles start at their own temperature, the later winning where they
-    /// overlap (applied at the start of the run: [`ThermalModel::initial_temperature_at`]).
+    /// overlap (applied at the start of the run: [`ThermalModel::region_temperature`]).
     pub initial_regions: Vec<InitialRegion>,
     /// θ of (M.49): a substep is at most θ times the smallest `C_i / G_i`; `0 < θ ≤ 1`.
     pub substep_fraction: f64,
@@ -108,16 +108,17 @@ impl InitialRegion {
 }
 
 impl ThermalModel {
-    /// The initial temperature of a particle centred at `x` \[K\]: that of the last initial
-    /// region holding `x`, or `initial_temperature`.
+    /// The initial temperature \[K\] of the last initial region holding `x`, if one does (a
+    /// particle outside every region starts at `initial_temperature`).
     #[must_use]
-    pub fn initial_temperature_at(&self, x: DVec3) -> f64 {
+    pub fn region_temperature(&self, x: DVec3) -> Option<f64> {
         self.initial_regions
             .iter()
             .rev()
             .find(|r| r.contains(x))
-            .map_or(self.initial_temperature, |r| r.temperature)
+            .map(|r| r.temperature)
     }
+
     /// The model with its per-pair tables derived from `materials`; every model is built with
     /// it, since the tables are what the pair pass reads.
     #[must_use]
