@@ -58,6 +58,17 @@ impl Checker {
         }
     }
 
+    /// A box's upper corner must exceed its lower corner (`min_name` = `min`) on every axis.
+    fn corners_ordered(&mut self, max_key: &str, max: [f64; 3], min_name: &str, min: [f64; 3]) {
+        if (0..3).any(|a| max[a] <= min[a]) {
+            self.fail(
+                max_key,
+                format!("{max:?}"),
+                format!("must exceed {min_name} = {min:?} along every axis"),
+            );
+        }
+    }
+
     fn material(&mut self, scene: &Scene, key: &str, name: &str) {
         if !scene.materials.contains_key(name) {
             let known: Vec<&str> = scene.materials.keys().map(String::as_str).collect();
@@ -172,16 +183,12 @@ pub fn validate(scene: &Scene) -> Vec<Violation> {
     if let Some(domain) = &scene.domain {
         c.finite_vector("domain.min_corner_m", domain.min_corner_m);
         c.finite_vector("domain.max_corner_m", domain.max_corner_m);
-        if (0..3).any(|k| domain.max_corner_m[k] <= domain.min_corner_m[k]) {
-            c.fail(
-                "domain.max_corner_m",
-                format!("{:?}", domain.max_corner_m),
-                format!(
-                    "must exceed domain.min_corner_m = {:?} on every axis",
-                    domain.min_corner_m
-                ),
-            );
-        }
+        c.corners_ordered(
+            "domain.max_corner_m",
+            domain.max_corner_m,
+            "domain.min_corner_m",
+            domain.min_corner_m,
+        );
     }
 
     if let Some(guards) = &scene.guards {
@@ -507,16 +514,12 @@ fn validate_thermal(c: &mut Checker, scene: &Scene) {
                 );
             }
         }
-        if (0..3).any(|a| region.max_corner_m[a] <= region.min_corner_m[a]) {
-            c.fail(
-                key("max_corner_m"),
-                format!("{:?}", region.max_corner_m),
-                format!(
-                    "must exceed min_corner_m = {:?} along every axis",
-                    region.min_corner_m
-                ),
-            );
-        }
+        c.corners_ordered(
+            &key("max_corner_m"),
+            region.max_corner_m,
+            "min_corner_m",
+            region.min_corner_m,
+        );
     }
     if let Some(theta) = thermal.substep_fraction {
         if c.finite("thermal.substep_fraction", theta) && !(theta > 0.0 && theta <= 1.0) {
@@ -910,16 +913,12 @@ fn validate_insert(c: &mut Checker, scene: &Scene, k: usize, insert: &InsertConf
     c.finite_vector(&key("max_corner_m"), insert.max_corner_m);
     c.finite_vector(&key("velocity_m_s"), insert.velocity_m_s);
     c.material(scene, &key("material"), &insert.material);
-    if c.violations.len() == before
-        && (0..3).any(|a| insert.max_corner_m[a] <= insert.min_corner_m[a])
-    {
-        c.fail(
-            key("max_corner_m"),
-            format!("{:?}", insert.max_corner_m),
-            format!(
-                "must exceed min_corner_m = {:?} along every axis",
-                insert.min_corner_m
-            ),
+    if c.violations.len() == before {
+        c.corners_ordered(
+            &key("max_corner_m"),
+            insert.max_corner_m,
+            "min_corner_m",
+            insert.min_corner_m,
         );
     }
     let psd = validate_size(c, &key("size"), &insert.size);
