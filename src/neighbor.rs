@@ -40,7 +40,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::periodic::Periodic;
-use crate::scatter::Window;
+use crate::scatter::{SlabVisit, Window};
 
 /// Verlet half list by owner, with its slabs and colour phases.
 #[derive(Debug, Clone, Default)]
@@ -497,40 +497,37 @@ impl NeighborList {
         })
     }
 
-    /// Calls `visit(&mut partial, window)` for every particle as owner, slab by slab in the
-    /// colour phases (see the module documentation), the slabs of a phase in parallel when
-    /// `parallel`, and returns the partials reduced by `merge` (associative and commutative, for
-    /// the result not to depend on the thread count). The window allows the owner's slots and the
-    /// particles of its slab and of the successor slab, which hold all its partners.
+    /// Calls `visit(&mut partial, slab)` for every slab, in the colour phases (see the module
+    /// documentation), the slabs of a phase in parallel when `parallel`, and returns the partials
+    /// reduced by `merge` (associative and commutative, for the result not to depend on the
+    /// thread count). The visit's windows allow each owner's slots and the particles of the slab
+    /// and of the successor slab, which hold all its partners.
     #[allow(unsafe_code)]
-    pub fn for_each_owner<R, V, M>(&self, parallel: bool, identity: R, visit: V, merge: M) -> R
+    pub fn for_each_slab<R, V, M>(&self, parallel: bool, identity: R, visit: V, merge: M) -> R
     where
         R: Clone + Send + Sync,
-        V: Fn(&mut R, &Window<'_>) + Sync,
+        V: Fn(&mut R, &SlabVisit<'_>) + Sync,
         M: Fn(R, R) -> R + Sync + Send,
     {
         let run_slab = |s: &u32| {
             let slab = *s as usize;
             let mut partial = identity.clone();
-            for &k in self.slab_members(slab) {
-                let k = k as usize;
-                // SAFETY: every partner lies in its owner's slab or the successor (checked at
-                // the end of `build`); the slabs running concurrently are those of one colour
-                // phase, whose sets {slab, successor} are disjoint (`colour_phases`; tested
-                // below); and an owner's slots belong to it alone.
-                let window = unsafe {
-                    Window::pair(
-                        k,
-                        self.slots(k),
-                        &self.partners,
-                        &self.slab_of,
-                        *s,
-                        self.successor[slab],
-                        self.crossing[k],
-                    )
-                };
-                visit(&mut partial, &window);
-            }
+            // SAFETY: every partner lies in its owner's slab or the successor (checked at the
+            // end of `build`); the slabs running concurrently are those of one colour phase,
+            // whose sets {slab, successor} are disjoint (`colour_phases`; tested below); and an
+            // owner's slots belong to it alone.
+            let visit_of_slab = unsafe {
+                SlabVisit::new(
+                    *s,
+                    self.successor[slab],
+                    self.slab_members(slab),
+                    &self.offsets,
+                    &self.partners,
+                    &self.slab_of,
+                    &self.crossing,
+                )
+            };
+            visit(&mut partial, &visit_of_slab);
             partial
         };
         let mut total = identity.clone();
@@ -546,6 +543,26 @@ impl NeighborList {
             total = merge(total, part);
         }
         total
+    }
+
+    /// Calls `visit(&mut partial, window)` for every particle as owner, slab by slab as in
+    /// [`NeighborList::for_each_slab`], and returns the partials reduced by `merge`.
+    pub fn for_each_owner<R, V, M>(&self, parallel: bool, identity: R, visit: V, merge: M) -> R
+    where
+        R: Clone + Send + Sync,
+        V: Fn(&mut R, &Window<'_>) + Sync,
+        M: Fn(R, R) -> R + Sync + Send,
+    {
+        self.for_each_slab(
+            parallel,
+            identity,
+            |partial, slab| {
+                for window in slab.windows() {
+                    visit(partial, &window);
+                }
+            },
+            merge,
+        )
     }
 
     /// The pairs for which `held(slot, owner)` gives a value (those with state worth keeping),

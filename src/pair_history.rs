@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use crate::contact::tangential::TangentialSpring;
 use crate::neighbor::{HeldPairs, NeighborList};
-use crate::scatter::{PerSlab, PerSlot, Scatter, Slot, Window};
+use crate::scatter::{OwnSlab, PerSlab, PerSlot, Scatter, Slot};
 
 /// A slot without a history entry.
 pub const NO_ENTRY: u32 = u32::MAX;
@@ -200,36 +200,40 @@ impl HistoryTargets<'_> {
     /// Slot `p`'s spring as the last pass left it (zero without an entry).
     #[inline]
     #[must_use]
-    pub fn read(&self, window: &Window<'_>, p: Slot<'_>) -> TangentialSpring {
+    pub fn read(&self, slab: OwnSlab<'_>, p: Slot<'_>) -> TangentialSpring {
         match self.entry.read(p) {
             NO_ENTRY => TangentialSpring::default(),
-            e => self
-                .pools
-                .update_own(window, |pool| pool.springs[e as usize]),
+            e => self.pools.update_own(slab, |pool| pool.springs[e as usize]),
         }
     }
 
     /// Stores slot `p`'s spring for the next pass (a zero spring takes no entry).
     #[inline(always)]
-    pub fn write(&self, window: &Window<'_>, p: Slot<'_>, value: TangentialSpring) {
+    pub fn write(&self, slab: OwnSlab<'_>, p: Slot<'_>, value: TangentialSpring) {
         let e = if value == TangentialSpring::default() {
             NO_ENTRY
         } else {
             self.pools
-                .update_own(window, |pool| Pool::append(&mut pool.next, value))
+                .update_own(slab, |pool| Pool::append(&mut pool.next, value))
         };
         self.entry.update(p, |slot| *slot = e);
     }
 
+    /// Whether slot `p` holds a spring (from the last pass).
+    #[inline]
+    #[must_use]
+    pub fn holds(&self, p: Slot<'_>) -> bool {
+        self.entry.read(p) != NO_ENTRY
+    }
+
     /// The contact of slot `p` ended: returns what its spring held, and the slot keeps none.
     #[inline]
-    pub fn release(&self, window: &Window<'_>, p: Slot<'_>) -> TangentialSpring {
+    pub fn release(&self, slab: OwnSlab<'_>, p: Slot<'_>) -> TangentialSpring {
         match self.entry.read(p) {
             NO_ENTRY => TangentialSpring::default(),
             e => {
                 self.entry.update(p, |slot| *slot = NO_ENTRY);
-                self.pools
-                    .update_own(window, |pool| pool.springs[e as usize])
+                self.pools.update_own(slab, |pool| pool.springs[e as usize])
             }
         }
     }
@@ -317,11 +321,11 @@ mod tests {
                 |(), window| {
                     for (p, _) in window.pairs() {
                         if p.index() == 0 && pass >= 3 {
-                            let released = targets.release(window, p);
+                            let released = targets.release(window.own_slab(), p);
                             assert_eq!(released, spring(if pass == 3 { 2.0 } else { 0.0 }));
                         } else {
-                            let before = targets.read(window, p);
-                            targets.write(window, p, spring(before.history.x + 1.0));
+                            let before = targets.read(window.own_slab(), p);
+                            targets.write(window.own_slab(), p, spring(before.history.x + 1.0));
                         }
                     }
                 },

@@ -16,8 +16,14 @@
 //! version did, took about 10 % of the LIGGGHTS bed's step: a load of the partner's slab and two
 //! compares per write, three writes per contact.) With debug assertions on, as in the tests,
 //! every token is still checked against the window's slabs. That guarantee is the single
-//! `unsafe` contract of the crate ([`Window::pair`], [`Window::particle`]); the passes themselves
-//! are safe code.
+//! `unsafe` contract of the crate ([`SlabVisit::new`], [`Window::pair`], [`Window::particle`]);
+//! the passes themselves are safe code.
+//!
+//! A task visits a whole slab ([`SlabVisit`]), owner by owner. The tokens of its windows live as
+//! long as the slab visit, not just the owner's window: a pass may collect the contacts of
+//! several owners and write their results afterwards (the batched pair pass in `forces`), still
+//! only through tokens the list vouched for. They cannot outlive the visit, which is what keeps
+//! them from reaching a slab another thread holds in a later colour phase.
 
 #![allow(unsafe_code)]
 
@@ -89,6 +95,94 @@ impl Slot<'_> {
     }
 }
 
+/// The slab a visit owns: its pool of per-slab data ([`PerSlab`]).
+#[derive(Debug, Clone, Copy)]
+pub struct OwnSlab<'w> {
+    index: u32,
+    window: PhantomData<&'w ()>,
+    thread: ThreadBound,
+}
+
+/// One task's visit of one slab of a coloured pass: the windows of its owners, in ascending
+/// order, and the slab's own per-slab data. The tokens it hands out live as long as the visit.
+#[derive(Debug)]
+pub struct SlabVisit<'a> {
+    slab: u32,
+    successor: u32,
+    members: &'a [u32],
+    /// CSR offsets of every owner's slots (`offsets[k]..offsets[k + 1]`).
+    offsets: &'a [u32],
+    partners: &'a [u32],
+    slab_of: &'a [u32],
+    crossing: &'a [bool],
+    thread: ThreadBound,
+}
+
+impl<'a> SlabVisit<'a> {
+    /// The visit of slab `slab` with owners `members`, whose slots are given by `offsets` and
+    /// `partners` (as in the neighbour list) and whose partners lie in `slab` or `successor`
+    /// (by `slab_of`).
+    ///
+    /// # Safety
+    /// Every partner of the members' slots lies in slab `slab` or `successor`, and while the
+    /// visit lives no other thread holds a visit or window that reaches a particle of these two
+    /// slabs or one of these slots.
+    #[must_use]
+    #[allow(clippy::too_many_arguments)]
+    pub unsafe fn new(
+        slab: u32,
+        successor: u32,
+        members: &'a [u32],
+        offsets: &'a [u32],
+        partners: &'a [u32],
+        slab_of: &'a [u32],
+        crossing: &'a [bool],
+    ) -> Self {
+        Self {
+            slab,
+            successor,
+            members,
+            offsets,
+            partners,
+            slab_of,
+            crossing,
+            thread: PhantomData,
+        }
+    }
+
+    /// The windows of the slab's owners, in ascending order.
+    pub fn windows(&self) -> impl Iterator<Item = Window<'a>> + '_ {
+        self.members.iter().map(move |&k| {
+            let k = k as usize;
+            let slots = self.offsets[k] as usize..self.offsets[k + 1] as usize;
+            // SAFETY: the visit's contract covers the windows of its owners, whose tokens live
+            // no longer than it does (the visit's lifetime bounds them).
+            unsafe {
+                Window::pair(
+                    k,
+                    slots,
+                    self.partners,
+                    self.slab_of,
+                    self.slab,
+                    self.successor,
+                    self.crossing[k],
+                )
+            }
+        })
+    }
+
+    /// The visited slab.
+    #[must_use]
+    #[inline]
+    pub fn own_slab(&self) -> OwnSlab<'a> {
+        OwnSlab {
+            index: self.slab,
+            window: PhantomData,
+            thread: PhantomData,
+        }
+    }
+}
+
 impl<'a> Window<'a> {
     /// The window of an owner's visit in a coloured pair pass: the owner, its pair slots
     /// `slots` and their partners `partners[slots]`.
@@ -142,7 +236,7 @@ impl<'a> Window<'a> {
     /// The visited particle (the owner of a pair visit).
     #[must_use]
     #[inline]
-    pub fn owner(&self) -> Member<'_> {
+    pub fn owner(&self) -> Member<'a> {
         Member {
             index: self.owner,
             window: PhantomData,
@@ -165,16 +259,14 @@ impl<'a> Window<'a> {
 
     /// The visit's pair slots with their partners, in slot order.
     #[inline]
-    pub fn pairs(&self) -> impl Iterator<Item = (Slot<'_>, Member<'_>)> {
+    pub fn pairs(&self) -> impl Iterator<Item = (Slot<'a>, Member<'a>)> + 'a {
         let first = self.slots.start;
+        let (slab_of, slabs) = (self.slab_of, self.slabs);
         self.partners.iter().enumerate().map(move |(i, &b)| {
             let p = first + i;
             debug_assert!(
-                self.slab_of
-                    .get(b as usize)
-                    .is_some_and(|s| self.slabs.contains(s)),
-                "partner {b} of slot {p} outside the slabs {:?} of its owner's window",
-                self.slabs
+                slab_of.get(b as usize).is_some_and(|s| slabs.contains(s)),
+                "partner {b} of slot {p} outside the slabs {slabs:?} of its owner's window"
             );
             (
                 Slot {
@@ -189,6 +281,59 @@ impl<'a> Window<'a> {
                 },
             )
         })
+    }
+
+    /// Number of the visit's pair slots.
+    #[must_use]
+    #[inline]
+    pub fn slot_count(&self) -> usize {
+        self.partners.len()
+    }
+
+    /// The `i`-th of the visit's pair slots with its partner (as [`Window::pairs`] gives it).
+    ///
+    /// # Panics
+    /// If `i` is not below [`Window::slot_count`].
+    #[must_use]
+    #[inline]
+    pub fn nth_pair(&self, i: usize) -> (Slot<'a>, Member<'a>) {
+        let b = self.partners[i];
+        debug_assert!(
+            self.slab_of
+                .get(b as usize)
+                .is_some_and(|s| self.slabs.contains(s)),
+            "partner {b} of slot {} outside the slabs {:?} of its owner's window",
+            self.slots.start + i,
+            self.slabs
+        );
+        (
+            Slot {
+                index: self.slots.start + i,
+                window: PhantomData,
+                thread: PhantomData,
+            },
+            Member {
+                index: b as usize,
+                window: PhantomData,
+                thread: PhantomData,
+            },
+        )
+    }
+
+    /// The owner's slab (its pool of per-slab data).
+    ///
+    /// # Panics
+    /// If the window is not a pair window (a per-particle visit has no slab).
+    #[must_use]
+    #[inline]
+    pub fn own_slab(&self) -> OwnSlab<'a> {
+        let index = self.slabs[0];
+        assert!(index != u32::MAX, "a one-particle window has no slab");
+        OwnSlab {
+            index,
+            window: PhantomData,
+            thread: PhantomData,
+        }
     }
 }
 
@@ -273,18 +418,13 @@ impl<T> Scatter<'_, T, PerSlot> {
 }
 
 impl<T> Scatter<'_, T, PerSlab> {
-    /// Applies `change` to the element of the owner's slab and returns what it returns.
-    ///
-    /// # Panics
-    /// If the window is not a pair window (a per-particle visit has no slab).
+    /// Applies `change` to the element of the visit's own slab and returns what it returns.
     #[inline]
-    pub fn update_own<R>(&self, window: &Window<'_>, change: impl FnOnce(&mut T) -> R) -> R {
-        let slab = window.slabs[0];
-        assert!(slab != u32::MAX, "a one-particle window has no slab");
-        let element = self.element(slab as usize);
-        // SAFETY: concurrent pair windows have disjoint slab pairs (`Window`'s contract), so no
-        // other thread's window names this slab as its own; the owners of one slab are visited
-        // one after the other by the same task.
+    pub fn update_own<R>(&self, slab: OwnSlab<'_>, change: impl FnOnce(&mut T) -> R) -> R {
+        let element = self.element(slab.index as usize);
+        // SAFETY: concurrent visits have disjoint slab pairs (`SlabVisit`'s and `Window`'s
+        // contracts), so no other thread's visit names this slab as its own; the owners of one
+        // slab are visited one after the other by the same task.
         change(unsafe { &mut *element })
     }
 }
@@ -372,12 +512,15 @@ mod tests {
         assert_eq!(particles.read(window.owner()), 1.0);
         let mut pools = vec![Vec::new(), Vec::new(), Vec::new()];
         let pools: Scatter<'_, Vec<u8>, PerSlab> = Scatter::new(&mut pools);
-        pools.update_own(&window, |pool| pool.push(7));
+        pools.update_own(window.own_slab(), |pool| pool.push(7));
         // SAFETY: single-threaded test.
         let particle = unsafe { Window::particle(1) };
         assert_eq!(particle.pairs().count(), 0);
-        assert!(std::panic::catch_unwind(|| pools.update_own(&particle, |_| ())).is_err());
-        assert_eq!(pools.update_own(&window, |pool| pool.clone()), vec![7]);
+        assert!(std::panic::catch_unwind(|| particle.own_slab()).is_err());
+        assert_eq!(
+            pools.update_own(window.own_slab(), |pool| pool.clone()),
+            vec![7]
+        );
         assert_eq!(values, [1.0, 0.0, 2.0, 0.0, 2.0]);
         assert_eq!(slot_values, [0, 0, 0, 1, 1, 0]);
     }
