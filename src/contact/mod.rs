@@ -1,5 +1,5 @@
 //! Contact laws as pure functions of pair kinematics and parameters: no particle arrays, no loops,
-//! no rayon. `forces.rs` calls them for every pair; tests call them directly.
+//! no rayon. `forces` calls them for every pair (`forces/lanes.rs`); tests call them directly.
 //!
 //! # Conventions
 //! * `n_ij` is the unit vector from the centre of i to the centre of j (paper, after eq. 15).
