@@ -259,28 +259,11 @@ impl<'a> Window<'a> {
 
     /// The visit's pair slots with their partners, in slot order.
     #[inline]
-    pub fn pairs(&self) -> impl Iterator<Item = (Slot<'a>, Member<'a>)> + 'a {
-        let first = self.slots.start;
-        let (slab_of, slabs) = (self.slab_of, self.slabs);
-        self.partners.iter().enumerate().map(move |(i, &b)| {
-            let p = first + i;
-            debug_assert!(
-                slab_of.get(b as usize).is_some_and(|s| slabs.contains(s)),
-                "partner {b} of slot {p} outside the slabs {slabs:?} of its owner's window"
-            );
-            (
-                Slot {
-                    index: p,
-                    window: PhantomData,
-                    thread: PhantomData,
-                },
-                Member {
-                    index: b as usize,
-                    window: PhantomData,
-                    thread: PhantomData,
-                },
-            )
-        })
+    pub fn pairs(&self) -> impl Iterator<Item = (Slot<'a>, Member<'a>)> + '_ {
+        self.partners
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| self.slot_and_partner(i, b))
     }
 
     /// Number of the visit's pair slots.
@@ -297,7 +280,13 @@ impl<'a> Window<'a> {
     #[must_use]
     #[inline]
     pub fn nth_pair(&self, i: usize) -> (Slot<'a>, Member<'a>) {
-        let b = self.partners[i];
+        self.slot_and_partner(i, self.partners[i])
+    }
+
+    /// The tokens of the `i`-th slot and its partner `b`: the one place a pair window mints
+    /// them.
+    #[inline]
+    fn slot_and_partner(&self, i: usize, b: u32) -> (Slot<'a>, Member<'a>) {
         debug_assert!(
             self.slab_of
                 .get(b as usize)
