@@ -31,7 +31,7 @@ mod lanes;
 use lanes::{ContactInput, ContactLanes, InstructionSet, LANES};
 
 /// `x_b − x_a` \[m\], as its minimum image across periodic axes (M.77).
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn pair_separation(
     periodic: Option<&Periodic>,
@@ -334,10 +334,16 @@ fn pair_pass<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         |summary, slab| {
             let mut batch = Batch::new(slab);
             for window in slab.windows() {
-                find_contacts::<BONDS, FRICTION, HEAT>(
-                    model, particles, omega, targets, &window, &mut batch, set, summary,
-                );
+                sift::<BONDS, FRICTION>(model, particles, targets, &window, &mut batch);
+                if batch.kept_count >= KEPT_PER_ROUND {
+                    handle_kept::<BONDS, FRICTION, HEAT>(
+                        model, particles, omega, targets, &mut batch, set, summary,
+                    );
+                }
             }
+            handle_kept::<BONDS, FRICTION, HEAT>(
+                model, particles, omega, targets, &mut batch, set, summary,
+            );
             batch.flush::<BONDS, FRICTION, HEAT>(model, particles, targets, set, summary);
             batch.finish_owner(targets);
         },
@@ -384,9 +390,26 @@ struct Batch<'s> {
     filled: usize,
     events: Vec<Event<'s>>,
     owner: Option<OwnerSums<'s>>,
-    /// Scratch: the positions, among an owner's slots, of those that need work.
-    kept: Vec<u32>,
+    /// The slots that need work, of the owners sifted since the last [`handle_kept`], in order:
+    /// the first `kept_count` entries (those beyond are scratch of the sift, all `Some`).
+    kept: Vec<Option<KeptSlot<'s>>>,
+    kept_count: usize,
 }
+
+/// A slot that needs work: touching, or holding a bond state or a spring.
+#[derive(Debug, Clone, Copy)]
+struct KeptSlot<'s> {
+    owner: Member<'s>,
+    partner: Member<'s>,
+    slot: Slot<'s>,
+    /// The owner's separations need the minimum image ([`Window::needs_minimum_image`]).
+    minimum_image: bool,
+}
+
+/// Owners' kept slots gathered before they are handled. Handling many owners' slots in one loop,
+/// rather than each owner's in its own, spares the branch predictor a loop exit per owner, which
+/// it cannot foresee (an owner has 0-3 contacts).
+const KEPT_PER_ROUND: usize = 64;
 
 impl<'s> Batch<'s> {
     fn new(slab: &'s SlabVisit<'s>) -> Self {
@@ -397,6 +420,7 @@ impl<'s> Batch<'s> {
             events: Vec::with_capacity(2 * LANES),
             owner: None,
             kept: Vec::new(),
+            kept_count: 0,
         }
     }
 
@@ -519,18 +543,104 @@ impl<'s> Batch<'s> {
     }
 }
 
-/// The slots of the window's owner: the pairs apart have their slot state cleared at once; the
-/// touching ones go into the batch's lanes, which run and are written back whenever they are
+/// Appends the window owner's slots that need work to the batch's kept slots: those touching,
+/// and those apart that still hold a bond state or a spring. Most candidates are neither, and
+/// whether one touches is a coin toss for the branch predictor (about one in five does on a
+/// packed bed): the slots are sifted without a branch, each written to the list and kept by
+/// advancing its end.
+#[inline(always)]
+fn sift<'s, const BONDS: bool, const FRICTION: bool>(
+    model: &Model,
+    particles: &Particles,
+    targets: &PairTargets<'_>,
+    window: &Window<'s>,
+    batch: &mut Batch<'s>,
+) {
+    // Known at compile time to be `None` where the instantiation leaves the physics out.
+    let states = targets.states.as_ref().filter(|_| BONDS);
+    let histories = targets.tangential.as_ref().filter(|_| FRICTION);
+    let owner = window.owner();
+    let a = owner.index();
+    let minimum_image = window.needs_minimum_image();
+    let (x_a, r_a) = (particles.position[a], particles.radius[a]);
+    let kept = batch.kept_count;
+    let room = kept + window.slot_count();
+    if batch.kept.len() < room {
+        batch.kept.resize(room, None);
+    }
+    // One loop per image rule, so that the rule is not tested per slot.
+    let slots = SiftedWindow {
+        window,
+        states,
+        histories,
+        x_a,
+        r_a,
+        minimum_image,
+    };
+    batch.kept_count = match model.periodic.as_ref().filter(|_| minimum_image) {
+        Some(periodic) => slots.sift(particles, &mut batch.kept, kept, |separation| {
+            periodic.minimum_image(separation)
+        }),
+        None => slots.sift(particles, &mut batch.kept, kept, |separation| separation),
+    };
+}
+
+/// What [`sift`] needs of one window.
+struct SiftedWindow<'w, 's, 't> {
+    window: &'w Window<'s>,
+    states: Option<&'t Scatter<'t, BondState, PerSlot>>,
+    histories: Option<&'t HistoryTargets<'t>>,
+    x_a: DVec3,
+    r_a: f64,
+    minimum_image: bool,
+}
+
+impl<'s> SiftedWindow<'_, 's, '_> {
+    /// Writes every slot to `kept[count..]` and keeps those that need work by advancing
+    /// `count`, which it returns; `image` maps `x_b − x_a` to the separation.
+    #[inline(always)]
+    fn sift(
+        &self,
+        particles: &Particles,
+        kept: &mut [Option<KeptSlot<'s>>],
+        mut count: usize,
+        image: impl Fn(DVec3) -> DVec3,
+    ) -> usize {
+        let owner = self.window.owner();
+        for (slot, partner) in self.window.pairs() {
+            let b = partner.index();
+            let separation = image(particles.position[b] - self.x_a);
+            let reach = self.r_a + particles.radius[b];
+            let touching = separation.length_squared() < reach * reach;
+            let bonded = self
+                .states
+                .is_some_and(|states| states.read(slot) != BondState::Unbonded);
+            let sprung = self
+                .histories
+                .is_some_and(|histories| histories.holds(slot));
+            kept[count] = Some(KeptSlot {
+                owner,
+                partner,
+                slot,
+                minimum_image: self.minimum_image,
+            });
+            count += usize::from(touching | bonded | sprung);
+        }
+        count
+    }
+}
+
+/// The kept slots of the batch, in order: the pairs apart have their slot state cleared at once;
+/// the touching ones go into the batch's lanes, which run and are written back whenever they are
 /// full.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-fn find_contacts<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     model: &Model,
     particles: &Particles,
     omega: Option<&[DVec3]>,
     targets: &PairTargets<'_>,
-    window: &Window<'s>,
-    batch: &mut Batch<'s>,
+    batch: &mut Batch<'_>,
     set: InstructionSet,
     summary: &mut ForceSummary,
 ) {
@@ -540,43 +650,18 @@ fn find_contacts<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     let omega = omega.filter(|_| FRICTION);
     let friction_tables = model.friction.as_ref().filter(|_| FRICTION);
     let heat = targets.heat.as_ref().filter(|_| HEAT);
-    let owner = window.owner();
-    let a = owner.index();
-    let own_slab = window.own_slab();
-    let periodic = model
-        .periodic
-        .as_ref()
-        .filter(|_| window.needs_minimum_image());
-    let (v_a, r_a, m_a) = (
-        particles.velocity[a],
-        particles.radius[a],
-        particles.mass[a],
-    );
-    let material_a = particles.material[a];
-    // First the slots that need any work: those touching, and those apart that still hold a
-    // bond state or a spring. Most candidates are neither, and whether one touches is a coin
-    // toss for the branch predictor (about one in five does on a packed bed): the slots are
-    // sifted without a branch, each written to the list and kept by advancing its end.
-    let count = window.slot_count();
-    if batch.kept.len() < count {
-        batch.kept.resize(count, 0);
-    }
-    let mut kept = 0;
-    for (i, (p, partner)) in window.pairs().enumerate() {
-        let b = partner.index();
+    let own_slab = batch.slab.own_slab();
+    for k in 0..batch.kept_count {
+        let KeptSlot {
+            owner,
+            partner,
+            slot: p,
+            minimum_image,
+        } = batch.kept[k].expect("the sift writes every entry it keeps");
+        let (a, b) = (owner.index(), partner.index());
+        let periodic = model.periodic.as_ref().filter(|_| minimum_image);
         let separation = pair_separation(periodic, particles, a, b);
-        let reach = r_a + particles.radius[b];
-        let touching = separation.length_squared() < reach * reach;
-        let bonded = states.is_some_and(|states| states.read(p) != BondState::Unbonded);
-        let sprung = histories.is_some_and(|histories| histories.holds(p));
-        batch.kept[kept] = u32::try_from(i).expect("fewer than 2^32 slots per owner");
-        kept += usize::from(touching | bonded | sprung);
-    }
-    for k in 0..kept {
-        let (p, partner) = window.nth_pair(batch.kept[k] as usize);
-        let b = partner.index();
-        let separation = pair_separation(periodic, particles, a, b);
-        let r_b = particles.radius[b];
+        let (r_a, r_b) = (particles.radius[a], particles.radius[b]);
         let reach = r_a + r_b;
         if separation.length_squared() >= reach * reach {
             // Apart: no square root, no division, and the slot's state cleared.
@@ -605,7 +690,7 @@ fn find_contacts<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                 .is_none_or(|p| p.minimum_image(separation) == separation),
             "a touching pair of owner {a} across a periodic face, which the list did not flag"
         );
-        let material_b = particles.material[b];
+        let (material_a, material_b) = (particles.material[a], particles.material[b]);
         let params = model.pair_params(material_a, material_b);
         let melted = heat.map_or((false, false), |h| (h.melted[a], h.melted[b]));
         let (angular_velocity, friction, held) = match (histories, omega, friction_tables) {
@@ -627,8 +712,8 @@ fn find_contacts<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         let input = ContactInput {
             separation,
             radius: [r_a, r_b],
-            mass: [m_a, particles.mass[b]],
-            velocity: [v_a, particles.velocity[b]],
+            mass: [particles.mass[a], particles.mass[b]],
+            velocity: [particles.velocity[a], particles.velocity[b]],
             effective_modulus: params.effective_modulus,
             damping_ratio: params.damping_ratio,
             materials: [material_a, material_b],
@@ -649,6 +734,7 @@ fn find_contacts<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             batch.flush::<BONDS, FRICTION, HEAT>(model, particles, targets, set, summary);
         }
     }
+    batch.kept_count = 0;
 }
 
 /// The particle pass: gravity, the wall contacts (normal, and with rotation tangential and
