@@ -263,9 +263,10 @@ impl ContactLanes {
 
 /// The laws of one touching pair over one step: the normal law with the bond's branch switch and
 /// its energy jump (M.35), and with friction the tangential spring and rolling resistance
-/// (M.57–M.63) with lever arms to the middle of the overlap (M.60).
+/// (M.57–M.63) with lever arms to the middle of the overlap (M.60). Without `ROLLING` the pair
+/// must have `μ_r = 0`, whose rolling torque is zero: it is then not evaluated.
 #[inline(always)]
-pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool>(
+pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool, const ROLLING: bool>(
     model: &Model,
     input: &ContactInput,
 ) -> ContactOutput {
@@ -327,7 +328,7 @@ pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool>(
             contact_velocity: v_a - v_b + (arm_a * omega_a + arm_b * omega_b).cross(normal),
             relative_angular_velocity: omega_a - omega_b,
             // Only the rolling law needs it.
-            inverse_inertia_sum: if friction.rolling > 0.0 {
+            inverse_inertia_sum: if ROLLING && friction.rolling > 0.0 {
                 1.0 / rolling::sphere_inertia(m_a, r_a) + 1.0 / rolling::sphere_inertia(m_b, r_b)
             } else {
                 0.0
@@ -336,7 +337,7 @@ pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool>(
             elastic_normal_force: outcome.elastic,
             bonded: outcome.state == BondState::Bonded,
         };
-        let step = tangential_step(
+        let step = tangential_step::<ROLLING>(
             friction,
             params.damping_ratio,
             model.dt,
@@ -357,10 +358,13 @@ pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool>(
 /// The laws over every lane (those past the batch's count hold stale inputs, which cost the same
 /// and whose results nobody reads).
 #[inline(always)]
-fn kernel<const BONDS: bool, const FRICTION: bool>(model: &Model, lanes: &mut ContactLanes) {
+fn kernel<const BONDS: bool, const FRICTION: bool, const ROLLING: bool>(
+    model: &Model,
+    lanes: &mut ContactLanes,
+) {
     for i in 0..LANES {
         let input = lanes.input::<BONDS, FRICTION>(i);
-        let out = contact_step::<BONDS, FRICTION>(model, &input);
+        let out = contact_step::<BONDS, FRICTION, ROLLING>(model, &input);
         lanes.store::<BONDS, FRICTION>(i, &out);
     }
 }
@@ -368,8 +372,11 @@ fn kernel<const BONDS: bool, const FRICTION: bool>(model: &Model, lanes: &mut Co
 /// The kernel compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn kernel_avx2<const BONDS: bool, const FRICTION: bool>(model: &Model, lanes: &mut ContactLanes) {
-    kernel::<BONDS, FRICTION>(model, lanes);
+fn kernel_avx2<const BONDS: bool, const FRICTION: bool, const ROLLING: bool>(
+    model: &Model,
+    lanes: &mut ContactLanes,
+) {
+    kernel::<BONDS, FRICTION, ROLLING>(model, lanes);
 }
 
 /// Which build of the kernel [`run`] takes: made only by [`InstructionSet::detect`], so that
@@ -406,13 +413,26 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool>(
     model: &Model,
     lanes: &mut ContactLanes,
 ) {
+    // In a vector kernel every lane evaluates the rolling law (a square root and four
+    // divisions), even where μ_r = 0; a batch without rolling resistance skips it.
+    let rolling = FRICTION && lanes.rolling.iter().any(|&coefficient| coefficient != 0.0);
     #[cfg(target_arch = "x86_64")]
     if set.avx2 {
         // SAFETY: `avx2` is true only as `detect` found it, on a processor with AVX2.
-        unsafe { kernel_avx2::<BONDS, FRICTION>(model, lanes) };
+        unsafe {
+            if rolling {
+                kernel_avx2::<BONDS, FRICTION, true>(model, lanes);
+            } else {
+                kernel_avx2::<BONDS, FRICTION, false>(model, lanes);
+            }
+        }
         return;
     }
-    kernel::<BONDS, FRICTION>(model, lanes);
+    if rolling {
+        kernel::<BONDS, FRICTION, true>(model, lanes);
+    } else {
+        kernel::<BONDS, FRICTION, false>(model, lanes);
+    }
 }
 
 #[cfg(test)]
@@ -485,7 +505,13 @@ mod tests {
                     friction: FrictionParams {
                         effective_shear_modulus: 0.4 * PAPER_E_STAR,
                         sliding: if k % 5 == 0 { 0.0 } else { 0.5 },
-                        rolling: if k % 4 == 0 { 0.0 } else { 0.1 },
+                        // Every other batch without rolling resistance, which the kernel
+                        // skips.
+                        rolling: if k % 4 == 0 || (k / LANES) % 2 == 0 {
+                            0.0
+                        } else {
+                            0.1
+                        },
                     },
                     held: TangentialSpring {
                         history: random.vector(if k % 7 < 4 { 1e-7 } else { 1e-4 }),
@@ -522,11 +548,14 @@ mod tests {
     /// Every build of the kernel gives bitwise what the laws give one contact at a time.
     fn check<const BONDS: bool, const FRICTION: bool>(model: &Model) {
         let inputs = inputs(16 * LANES);
-        let (mut sliding, mut sticking, mut switched) = (0, 0, 0);
+        let (mut sliding, mut sticking, mut switched, mut rolling) = (0, 0, 0, 0);
         for batch in inputs.chunks(LANES) {
+            rolling += usize::from(batch.iter().any(|input| input.friction.rolling != 0.0));
             let one_by_one: Vec<ContactOutput> = batch
                 .iter()
-                .map(|input| contact_step::<BONDS, FRICTION>(model, std::hint::black_box(input)))
+                .map(|input| {
+                    contact_step::<BONDS, FRICTION, true>(model, std::hint::black_box(input))
+                })
                 .collect();
             for set in [InstructionSet::baseline(), InstructionSet::detect()] {
                 let mut lanes = ContactLanes::default();
@@ -559,6 +588,11 @@ mod tests {
                 "{sliding} sliding, {sticking} sticking"
             );
         }
+        // Both kernels, with and without the rolling law, ran.
+        assert!(
+            rolling > 0 && rolling < inputs.len() / LANES,
+            "{rolling} batches with rolling resistance"
+        );
         if BONDS {
             assert!(switched > 0, "no bond formed or broke");
         }

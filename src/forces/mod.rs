@@ -136,9 +136,10 @@ struct TangentialStep {
 }
 
 /// Tangential spring (M.57–M.59) and rolling resistance (M.61) of one contact over one step,
-/// and the energy they took (M.63): `−F_t·v_t dt − ΔU_t + (−M_r·ω_rel) dt`.
+/// and the energy they took (M.63): `−F_t·v_t dt − ΔU_t + (−M_r·ω_rel) dt`. Without `ROLLING`
+/// the rolling torque is zero, as the rolling law gives for `μ_r = 0`, without evaluating it.
 #[inline(always)]
-fn tangential_step(
+fn tangential_step<const ROLLING: bool>(
     params: &FrictionParams,
     damping_ratio: f64,
     dt: f64,
@@ -174,14 +175,18 @@ fn tangential_step(
             spring_energy: tangential::spring_energy(stiffness, out.history),
         };
     }
-    let rolling_torque = rolling::rolling_torque(
-        params.rolling,
-        kinematics.effective_radius,
-        contact.elastic_normal_force,
-        contact.relative_angular_velocity,
-        contact.inverse_inertia_sum,
-        dt,
-    );
+    let rolling_torque = if ROLLING {
+        rolling::rolling_torque(
+            params.rolling,
+            kinematics.effective_radius,
+            contact.elastic_normal_force,
+            contact.relative_angular_velocity,
+            contact.inverse_inertia_sum,
+            dt,
+        )
+    } else {
+        DVec3::ZERO
+    };
     let lost = -dt * force.dot(tangential_velocity)
         - (spring.spring_energy - held.spring_energy)
         - dt * rolling_torque.dot(contact.relative_angular_velocity);
@@ -887,7 +892,7 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
                     elastic_normal_force: elastic,
                     bonded: false,
                 };
-                let step = tangential_step(
+                let step = tangential_step::<true>(
                     tables.wall(w, state.material[k]),
                     params.damping_ratio,
                     model.dt,
