@@ -1,10 +1,11 @@
 //! The force pass: the only place that loops over pairs for forces.
 //!
-//! 1. **Pair pass**, a coloured traversal of the neighbour list
-//!    ([`NeighborList::for_each_owner`]): each pair is evaluated once by its owner, which calls
-//!    the pure contact laws and adds the result to both particles (Newton's third law), together
-//!    with the torques, the energy the pair lost and, with `[thermal]`, the heat it conducts. The
-//!    pair's own history (bond state, tangential spring) lives in its slot.
+//! 1. **Pair pass**, a coloured traversal of the neighbour list slab by slab
+//!    ([`NeighborList::for_each_slab`]): each pair is evaluated once for its owner, by the pure
+//!    contact laws run over batches of contacts (`forces/lanes.rs`), and the result is added to
+//!    both particles (Newton's third law), together with the torques, the energy the pair lost
+//!    and, with `[thermal]`, the heat it conducts. The pair's own history (bond state,
+//!    tangential spring) lives in its slot.
 //! 2. **Particle pass** (parallel over particles): gravity, wall contacts, boundary heat and the
 //!    per-step checks, each particle writing only its own entries.
 //!
@@ -397,7 +398,7 @@ struct Batch<'s> {
     events: Vec<Event<'s>>,
     owner: Option<OwnerSums<'s>>,
     /// The slots that need work, of the owners sifted since the last [`handle_kept`], in order:
-    /// the first `kept_count` entries (those beyond are scratch of the sift, all `Some`).
+    /// the first `kept_count` entries (those beyond are the sift's scratch).
     kept: Vec<Option<KeptSlot<'s>>>,
     kept_count: usize,
 }
@@ -466,7 +467,7 @@ impl<'s> Batch<'s> {
             events: recycle(self.events),
             kept: recycle(self.kept),
         };
-        BATCH_BUFFERS.with_borrow_mut(|kept| *kept = buffers);
+        BATCH_BUFFERS.with_borrow_mut(|held| *held = buffers);
     }
 
     /// Runs the laws of the filled lanes and writes back every event since the last flush, in
