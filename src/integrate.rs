@@ -24,13 +24,14 @@ const CHUNK: usize = 1024;
 /// of the step's forces and torques: the pass leaves them at zero, ready for the next force pass
 /// to add into (`forces::compute` with `cleared`). Returns whether `moved_too_far(k, x)` held
 /// for some particle's new position `x` (the neighbour list's rebuild test, taken in the same
-/// pass: one parallel region and one sweep of the arrays instead of five).
+/// pass: one parallel region and one sweep of the arrays instead of five), and the largest
+/// speed of the drift.
 pub fn kick_drift(
     particles: &mut Particles,
     rotation: Option<&mut Rotation>,
     dt: f64,
     moved_too_far: impl Fn(usize, DVec3) -> bool + Sync,
-) -> bool {
+) -> Drift {
     let Particles {
         position,
         velocity,
@@ -53,11 +54,16 @@ pub fn kick_drift(
                 .zip(optional_chunks(omega).zip(optional_chunks(torque))),
         )
         .collect();
-    any_chunk(chunks, parallel, |first, ((x, v), (f, angular))| {
+    let drift = each_chunk(chunks, parallel, |first, ((x, v), (f, angular))| {
         let mut moved = false;
+        let mut max_speed_squared: f64 = 0.0;
         for (k, ((x, v), f)) in (first..).zip(x.iter_mut().zip(v.iter_mut()).zip(f.iter_mut())) {
-            *v += 0.5 * dt / mass[k] * *f;
-            *x += dt * *v;
+            let velocity = *v + 0.5 * dt / mass[k] * *f;
+            // Taken from the register: read back from memory, the vector straddles the two
+            // stores that wrote it and waits for them (it doubled the pass's time).
+            max_speed_squared = max_speed_squared.max(velocity.length_squared());
+            *v = velocity;
+            *x += dt * velocity;
             *f = DVec3::ZERO;
             moved |= moved_too_far(k, *x);
         }
@@ -65,8 +71,22 @@ pub fn kick_drift(
             kick_angular(w, t, first, mass, radius, dt);
             t.fill(DVec3::ZERO);
         }
-        moved
-    })
+        (moved, max_speed_squared)
+    });
+    Drift {
+        moved_too_far: drift.0,
+        max_speed: drift.1.sqrt(),
+    }
+}
+
+/// What the drift of [`kick_drift`] reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drift {
+    /// Some particle moved more than half the skin since the neighbour list's build.
+    pub moved_too_far: bool,
+    /// The largest speed of the drift, |v(t + dt/2)| \[m/s\]: no particle moved more than
+    /// `dt` times it (the near lists' bound, `neighbor`).
+    pub max_speed: f64,
 }
 
 /// The closing half kick (M.32) and, with rotation, that of ω (M.62), in one pass.
@@ -87,14 +107,14 @@ pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64)
         .chunks_mut(CHUNK)
         .zip(optional_chunks(omega).zip(optional_chunks(torque)))
         .collect();
-    any_chunk(chunks, parallel, |first, (v, angular)| {
+    each_chunk(chunks, parallel, |first, (v, angular)| {
         for (k, v) in (first..).zip(v.iter_mut()) {
             *v += 0.5 * dt / mass[k] * force[k];
         }
         if let (Some(w), Some(t)) = angular {
             kick_angular(w, t, first, mass, radius, dt);
         }
-        false
+        (false, 0.0)
     });
 }
 
@@ -126,23 +146,27 @@ fn kick_angular(
 }
 
 /// Runs `visit(first, chunk)` for every chunk (`first`: the index of its first particle), in
-/// parallel when `parallel`, and returns whether any visit returned `true`.
-fn any_chunk<T: Send>(
+/// parallel when `parallel`, and returns whether any visit returned `true` with the largest of
+/// the numbers they returned (both exact, so the thread count does not change them).
+fn each_chunk<T: Send>(
     chunks: Vec<T>,
     parallel: bool,
-    visit: impl Fn(usize, T) -> bool + Sync,
-) -> bool {
+    visit: impl Fn(usize, T) -> (bool, f64) + Sync,
+) -> (bool, f64) {
+    let merge = |(a, x): (bool, f64), (b, y): (bool, f64)| (a || b, x.max(y));
     if parallel {
         chunks
             .into_par_iter()
             .enumerate()
             .map(|(c, chunk)| visit(c * CHUNK, chunk))
-            .reduce(|| false, |a, b| a || b)
+            .reduce(|| (false, 0.0), merge)
     } else {
         chunks
             .into_iter()
             .enumerate()
-            .fold(false, |any, (c, chunk)| visit(c * CHUNK, chunk) || any)
+            .fold((false, 0.0), |any, (c, chunk)| {
+                merge(any, visit(c * CHUNK, chunk))
+            })
     }
 }
 
@@ -221,11 +245,16 @@ mod tests {
             for far in [3, count - 2] {
                 let (mut particles, mut rotation) = row(count);
                 let dt = 0.5;
-                let moved = kick_drift(&mut particles, Some(&mut rotation), dt, |k, x| {
+                let drift = kick_drift(&mut particles, Some(&mut rotation), dt, |k, x| {
                     // Particle k started at x = k: the test sees the drifted position.
                     k == far && x.y > 0.0
                 });
-                assert!(moved, "{count} particles, particle {far}");
+                assert!(drift.moved_too_far, "{count} particles, particle {far}");
+                // The fastest particle is the last, |v| = (count − 1) √(1 + 1/16); the square
+                // root of the largest |v|² is exactly the largest |v| (rounding is monotone).
+                let fastest = particles.velocity[count - 1].length();
+                assert_eq!(drift.max_speed, fastest);
+                assert!((fastest - (count - 1) as f64 * 1.0625_f64.sqrt()).abs() < 1e-12 * fastest);
                 for k in 0..count {
                     let kf = k as f64;
                     // m = 1 kg, I = 2/5 kg·m².
@@ -252,7 +281,7 @@ mod tests {
                 }
                 // Without rotation the torques are neither used nor cleared.
                 let none = kick_drift(&mut particles, None, dt, |_, _| false);
-                assert!(!none, "nobody moved too far");
+                assert!(!none.moved_too_far, "nobody moved too far");
                 assert!(particles.force.iter().all(|f| *f == DVec3::ZERO));
                 assert_eq!(rotation.torque, refilled.torque);
                 for k in 0..count {

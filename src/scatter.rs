@@ -24,9 +24,15 @@
 //! several owners and write their results afterwards (the batched pair pass in `forces`), still
 //! only through tokens the list vouched for. They cannot outlive the visit, which is what keeps
 //! them from reaching a slab another thread holds in a later colour phase.
+//!
+//! A visit may also keep a *near list* for its slab between passes ([`NearPair`],
+//! [`NearVisit`]): the slots whose pairs were within a near skin at a refresh, recorded from the
+//! visit's own tokens and handed back as tokens to the next visits of the same slab of the same
+//! list build. The list (`crate::neighbor::NearPairs`) vouches for that, as for the partners.
 
 #![allow(unsafe_code)]
 
+use std::cell::RefCell;
 use std::marker::PhantomData;
 use std::ops::Range;
 
@@ -103,6 +109,39 @@ pub struct OwnSlab<'w> {
     thread: ThreadBound,
 }
 
+/// One entry of a slab's near list: an owner of the slab and one of its slots, as plain
+/// indices. Only [`SlabVisit::record_near`] makes one, from a visit's own tokens.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NearPair {
+    owner: u32,
+    slot: u32,
+}
+
+/// What a slab visit does with its slab's near list.
+#[derive(Debug)]
+pub enum NearVisit<'a> {
+    /// The pass keeps no near list.
+    Off,
+    /// The list recorded at the last refresh, to read.
+    Read(&'a [NearPair]),
+    /// The list to record anew (empty when the visit begins).
+    Record(&'a RefCell<Vec<NearPair>>),
+}
+
+/// The tokens of one near-list entry: the owner, the slot, its partner, and whether the owner's
+/// separations need the minimum image ([`Window::needs_minimum_image`]).
+#[derive(Debug, Clone, Copy)]
+pub struct NearTokens<'a> {
+    /// The owner of the slot.
+    pub owner: Member<'a>,
+    /// The slot.
+    pub slot: Slot<'a>,
+    /// Its partner.
+    pub partner: Member<'a>,
+    /// See [`Window::needs_minimum_image`].
+    pub minimum_image: bool,
+}
+
 /// One task's visit of one slab of a coloured pass: the windows of its owners, in ascending
 /// order, and the slab's own per-slab data. The tokens it hands out live as long as the visit.
 #[derive(Debug)]
@@ -115,18 +154,20 @@ pub struct SlabVisit<'a> {
     partners: &'a [u32],
     slab_of: &'a [u32],
     crossing: &'a [bool],
+    near: NearVisit<'a>,
     thread: ThreadBound,
 }
 
 impl<'a> SlabVisit<'a> {
     /// The visit of slab `slab` with owners `members`, whose slots are given by `offsets` and
     /// `partners` (as in the neighbour list) and whose partners lie in `slab` or `successor`
-    /// (by `slab_of`).
+    /// (by `slab_of`), with the slab's near list `near`.
     ///
     /// # Safety
     /// Every partner of the members' slots lies in slab `slab` or `successor`, and while the
     /// visit lives no other thread holds a visit or window that reaches a particle of these two
-    /// slabs or one of these slots.
+    /// slabs or one of these slots. A near list to read holds only entries recorded by visits of
+    /// this slab with the same `members`, `offsets` and `partners`.
     #[must_use]
     #[allow(clippy::too_many_arguments)]
     pub unsafe fn new(
@@ -137,6 +178,7 @@ impl<'a> SlabVisit<'a> {
         partners: &'a [u32],
         slab_of: &'a [u32],
         crossing: &'a [bool],
+        near: NearVisit<'a>,
     ) -> Self {
         Self {
             slab,
@@ -146,6 +188,7 @@ impl<'a> SlabVisit<'a> {
             partners,
             slab_of,
             crossing,
+            near,
             thread: PhantomData,
         }
     }
@@ -180,6 +223,78 @@ impl<'a> SlabVisit<'a> {
             window: PhantomData,
             thread: PhantomData,
         }
+    }
+
+    /// Whether this visit records its slab's near list anew ([`SlabVisit::record_near`]).
+    #[must_use]
+    #[inline]
+    pub fn records_near(&self) -> bool {
+        matches!(self.near, NearVisit::Record(_))
+    }
+
+    /// Adds `slot` of `window` (a window of this visit) to the near list being recorded; does
+    /// nothing unless the visit records one.
+    #[inline]
+    pub fn record_near(&self, window: &Window<'a>, slot: Slot<'a>) {
+        debug_assert!(window.slots.contains(&slot.index), "slot of another window");
+        if let NearVisit::Record(list) = &self.near {
+            list.borrow_mut().push(NearPair {
+                owner: u32::try_from(window.owner).expect("particle indices fit u32"),
+                slot: u32::try_from(slot.index).expect("slot indices fit u32"),
+            });
+        }
+    }
+
+    /// Number of entries of the near list read by this visit (0 if it reads none).
+    #[must_use]
+    #[inline]
+    pub fn near_count(&self) -> usize {
+        match &self.near {
+            NearVisit::Read(list) => list.len(),
+            _ => 0,
+        }
+    }
+
+    /// The tokens of the near list's entries `range`, in the order they were recorded.
+    ///
+    /// # Panics
+    /// If the visit reads no near list or `range` is not within it.
+    #[inline]
+    pub fn near_pairs(
+        &self,
+        range: Range<usize>,
+    ) -> impl ExactSizeIterator<Item = NearTokens<'a>> + '_ {
+        let NearVisit::Read(list) = &self.near else {
+            panic!("this visit reads no near list")
+        };
+        list[range].iter().map(|pair| {
+            let (owner, slot) = (pair.owner as usize, pair.slot as usize);
+            let partner = self.partners[slot];
+            debug_assert!(
+                self.slab_of
+                    .get(partner as usize)
+                    .is_some_and(|s| *s == self.slab || *s == self.successor),
+                "near pair ({owner}, slot {slot}) outside the slabs of its visit"
+            );
+            NearTokens {
+                owner: Member {
+                    index: owner,
+                    window: PhantomData,
+                    thread: PhantomData,
+                },
+                slot: Slot {
+                    index: slot,
+                    window: PhantomData,
+                    thread: PhantomData,
+                },
+                partner: Member {
+                    index: partner as usize,
+                    window: PhantomData,
+                    thread: PhantomData,
+                },
+                minimum_image: self.crossing[owner],
+            }
+        })
     }
 }
 

@@ -19,7 +19,7 @@ use crate::forces::{self, ForceSummary};
 use crate::integrate;
 use crate::laser;
 use crate::model::Model;
-use crate::neighbor::{HeldPairs, NeighborList};
+use crate::neighbor::{HeldPairs, NearPairs, NeighborList};
 use crate::pair_history::TangentialHistories;
 use crate::particles::{Particles, Rotation};
 use crate::thermal::{self, ThermalState};
@@ -30,7 +30,9 @@ use crate::wall_history::WallSprings;
 pub struct Simulation {
     /// Run parameters.
     pub model: Model,
-    /// Particle state.
+    /// Particle state. Positions edited between steps (rather than by [`Simulation::step`]) must
+    /// not close any gap by more than half the near skin: the near lists would not see the pair
+    /// (`neighbor`'s "Near lists"); a uniform shift of every particle is safe.
     pub particles: Particles,
     neighbors: NeighborList,
     /// Per pair slot of the neighbour list: the bond state, carried over rebuilds by ids; empty
@@ -54,6 +56,16 @@ pub struct Simulation {
     /// With rotation only: the tangential histories of the pairs in contact, carried over
     /// rebuilds like `bond_states`.
     tangential: TangentialHistories,
+    /// The slots the force pass tests between refreshes (`neighbor`'s "Near lists").
+    near: NearPairs,
+    /// How far any particle can have moved since the near lists' refresh \[m\]: the sum over
+    /// the drifts since of dt times their largest speed.
+    near_travel: f64,
+    /// Force passes that recorded the near lists anew.
+    near_refreshes: u64,
+    /// Off: every force pass records the near lists anew, testing every candidate (the
+    /// reference the near lists are tested against).
+    near_lists: bool,
     /// Steps taken.
     pub step: u64,
     /// Simulated time \[s\].
@@ -198,6 +210,9 @@ pub struct Diagnostics {
     pub energy_residual: f64,
     /// Neighbour-list builds so far.
     pub neighbor_builds: u64,
+    /// Force passes so far that recorded the near lists anew (`neighbor`'s "Near lists"); the
+    /// others tested only the near pairs.
+    pub near_refreshes: u64,
     /// Particles removed so far because they left the domain (M.78); their energies stay in the
     /// totals (dissipated, thermal) and in the balances.
     pub removed_particles: u64,
@@ -311,6 +326,10 @@ impl Simulation {
             start: StartEnergies::default(),
             rotation,
             tangential: TangentialHistories::default(),
+            near: NearPairs::default(),
+            near_travel: 0.0,
+            near_refreshes: 0,
+            near_lists: true,
             removed: Removed::default(),
             step: 0,
             time: 0.0,
@@ -602,6 +621,10 @@ impl Simulation {
             start: StartEnergies::default(),
             rotation,
             tangential: TangentialHistories::default(),
+            near: NearPairs::default(),
+            near_travel: 0.0,
+            near_refreshes: 0,
+            near_lists: true,
             removed: state.removed,
             step: state.step,
             time: 0.0,
@@ -828,10 +851,24 @@ impl Simulation {
             }
             _ => None,
         };
+        // A pair missing from the near lists had a gap of at least the near skin at their
+        // refresh, and each of its particles closed it by at most `near_travel` since: they
+        // hold every pair that can touch while 2 × near_travel stays below the near skin.
+        // (The bound sums dt |v|max exactly as the drifts moved the particles; the rounding of
+        // the positions, about 1e-19 m a step, is far below the margin of 1e-6 relative.)
+        let refresh_near = !self.near_lists
+            || !self.near.belong_to(&self.neighbors)
+            || 2.0 * self.near_travel >= (1.0 - 1e-6) * self.neighbors.near_skin();
+        if refresh_near {
+            self.near_travel = 0.0;
+            self.near_refreshes += 1;
+        }
         forces::compute(
             &self.model,
             &mut self.particles,
             &self.neighbors,
+            &mut self.near,
+            refresh_near,
             self.model
                 .has_bonds()
                 .then_some(self.bond_states.as_mut_slice()),
@@ -899,15 +936,23 @@ impl Simulation {
         }
     }
 
+    /// Whether the force passes test only the near pairs between refreshes (the default), or
+    /// every candidate at every pass. The results are the same; the switch exists so that tests
+    /// can show it.
+    pub fn use_near_lists(&mut self, on: bool) {
+        self.near_lists = on;
+    }
+
     /// Advances one time step in the documented order.
     pub fn step(&mut self) {
         let dt = self.model.dt;
         let neighbors = &self.neighbors;
-        let moved =
+        let drift =
             integrate::kick_drift(&mut self.particles, self.rotation.as_mut(), dt, |k, x| {
                 neighbors.moved_too_far(k, x)
             });
-        if moved || self.neighbors.is_stale(self.particles.len()) {
+        self.near_travel += dt * drift.max_speed;
+        if drift.moved_too_far || self.neighbors.is_stale(self.particles.len()) {
             self.rebuild_neighbors();
         }
         self.absorb_laser();
@@ -959,6 +1004,7 @@ impl Simulation {
             removed_particles: self.removed.particles,
             gravitational_energy: p.gravitational_energy(self.model.gravity),
             neighbor_builds: self.neighbors.builds,
+            near_refreshes: self.near_refreshes,
             ..Diagnostics::default()
         };
         let mut tightest = f64::INFINITY;

@@ -1,7 +1,8 @@
 //! The force pass: the only place that loops over pairs for forces.
 //!
 //! 1. **Pair pass**, a coloured traversal of the neighbour list slab by slab
-//!    ([`NeighborList::for_each_slab`]): each pair is evaluated once for its owner, by the pure
+//!    ([`NeighborList::for_each_slab_near`]), over each slab's near list between refreshes
+//!    (`neighbor`'s "Near lists"): each pair is evaluated once for its owner, by the pure
 //!    contact laws run over batches of contacts (`forces/lanes.rs`), and the result is added to
 //!    both particles (Newton's third law), together with the torques, the energy the pair lost
 //!    and, with `[thermal]`, the heat it conducts. The pair's own history (bond state,
@@ -19,11 +20,13 @@ use rayon::prelude::*;
 use crate::contact::tangential::TangentialSpring;
 use crate::contact::{self, BondState, FrictionParams, PairKinematics, rolling, tangential};
 use crate::model::Model;
-use crate::neighbor::NeighborList;
+use crate::neighbor::{NearPairs, NeighborList};
 use crate::pair_history::{HistoryTargets, TangentialHistories};
 use crate::particles::{Particles, Rotation};
 use crate::periodic::Periodic;
-use crate::scatter::{self, Member, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window};
+use crate::scatter::{
+    self, Member, NearTokens, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
+};
 use crate::thermal::{self, ThermalModel};
 use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
 
@@ -204,11 +207,15 @@ fn tangential_step<const ROLLING: bool>(
 /// (`states`, per slot, given when the scene has a bond law) and tangential histories advance by
 /// one step. Returns what the per-step guards need. `cleared`: the forces and torques are
 /// already zero (the step's opening pass, `integrate::kick_drift`, leaves them so), and the
-/// pass adds into them without zeroing them first.
+/// pass adds into them without zeroing them first. `near`: the near lists, recorded anew if
+/// `refresh_near` (or if they do not belong to the list's build), read otherwise.
+#[allow(clippy::too_many_arguments)]
 pub fn compute(
     model: &Model,
     particles: &mut Particles,
     list: &NeighborList,
+    near: &mut NearPairs,
+    refresh_near: bool,
     states: Option<&mut [BondState]>,
     rotation: Option<PassRotation<'_>>,
     mut heat: Option<PassHeat<'_>>,
@@ -275,7 +282,16 @@ pub fn compute(
             (true, true, false) => pair_pass::<true, true, false>,
             (true, true, true) => pair_pass::<true, true, true>,
         };
-        let summary = pass(model, state, list, omega, &targets, set, parallel);
+        let summary = pass(
+            model,
+            state,
+            list,
+            (near, refresh_near),
+            omega,
+            &targets,
+            set,
+            parallel,
+        );
         if let Some(h) = histories {
             h.finish_pass();
         }
@@ -324,24 +340,43 @@ struct HeatTargets<'a> {
 
 /// The pair pass over every slab, compiled for one combination of optional physics: bond
 /// states (`BONDS`), tangential springs and torques (`FRICTION`), conduction (`HEAT`). A target
-/// the combination leaves out is ignored even if present.
+/// the combination leaves out is ignored even if present. A slab visit that records its near
+/// list sifts every slot of its owners; the others sift their near lists only.
+#[allow(clippy::too_many_arguments)]
 fn pair_pass<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     model: &Model,
     particles: &Particles,
     list: &NeighborList,
+    (near, refresh_near): (&mut NearPairs, bool),
     omega: Option<&[DVec3]>,
     targets: &PairTargets<'_>,
     set: InstructionSet,
     parallel: bool,
 ) -> ForceSummary {
-    list.for_each_slab(
+    let near_skin = list.near_skin();
+    list.for_each_slab_near(
         parallel,
+        near,
+        refresh_near,
         ForceSummary::default(),
         |summary, slab| {
             let mut batch = Batch::new(slab);
-            for window in slab.windows() {
-                sift::<BONDS, FRICTION>(model, particles, targets, &window, &mut batch);
-                if batch.kept_count >= KEPT_PER_ROUND {
+            if slab.records_near() {
+                for window in slab.windows() {
+                    sift::<BONDS, FRICTION>(
+                        model, particles, targets, &window, near_skin, &mut batch,
+                    );
+                    if batch.kept_count >= KEPT_PER_ROUND {
+                        handle_kept::<BONDS, FRICTION, HEAT>(
+                            model, particles, omega, targets, &mut batch, set, summary,
+                        );
+                    }
+                }
+            } else {
+                let count = slab.near_count();
+                for start in (0..count).step_by(NEAR_PER_ROUND) {
+                    let entries = slab.near_pairs(start..(start + NEAR_PER_ROUND).min(count));
+                    sift_near::<BONDS, FRICTION>(model, particles, targets, entries, &mut batch);
                     handle_kept::<BONDS, FRICTION, HEAT>(
                         model, particles, omega, targets, &mut batch, set, summary,
                     );
@@ -356,6 +391,55 @@ fn pair_pass<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         },
         ForceSummary::merge,
     )
+}
+
+/// Near-list entries sifted before their kept slots are handled: about a hundred kept slots, as
+/// [`KEPT_PER_ROUND`] owners give when all slots are sifted.
+const NEAR_PER_ROUND: usize = 256;
+
+/// Appends the near-list entries that need work to the batch's kept slots, as [`sift`] does
+/// for a window's slots: without a branch on whether a pair touches. The owner changes from
+/// entry to entry here, so its position is loaded each time (it is in cache: the entries come
+/// owner by owner).
+#[inline(always)]
+fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
+    model: &Model,
+    particles: &Particles,
+    targets: &PairTargets<'_>,
+    entries: impl ExactSizeIterator<Item = NearTokens<'s>>,
+    batch: &mut Batch<'s>,
+) {
+    // Known at compile time to be `None` where the instantiation leaves the physics out.
+    let states = targets.states.as_ref().filter(|_| BONDS);
+    let histories = targets.tangential.as_ref().filter(|_| FRICTION);
+    let mut count = batch.kept_count;
+    let room = count + entries.len();
+    if batch.kept.len() < room {
+        batch.kept.resize(room, None);
+    }
+    for NearTokens {
+        owner,
+        slot,
+        partner,
+        minimum_image,
+    } in entries
+    {
+        let (a, b) = (owner.index(), partner.index());
+        let periodic = model.periodic.as_ref().filter(|_| minimum_image);
+        let separation = pair_separation(periodic, particles, a, b);
+        let reach = particles.radius[a] + particles.radius[b];
+        let touching = separation.length_squared() < reach * reach;
+        let bonded = states.is_some_and(|states| states.read(slot) != BondState::Unbonded);
+        let sprung = histories.is_some_and(|histories| histories.holds(slot));
+        batch.kept[count] = Some(KeptSlot {
+            owner,
+            partner,
+            slot,
+            minimum_image,
+        });
+        count += usize::from(touching | bonded | sprung);
+    }
+    batch.kept_count = count;
 }
 
 /// What happened at one slot, in the order the owners and their slots come: what the write-back
@@ -593,13 +677,15 @@ impl<'s> Batch<'s> {
 /// and those apart that still hold a bond state or a spring. Most candidates are neither, and
 /// whether one touches is a coin toss for the branch predictor (about one in five does on a
 /// packed bed): the slots are sifted without a branch, each written to the list and kept by
-/// advancing its end.
+/// advancing its end. The slots whose gap is below `near_skin` go into the slab's near list
+/// (this sift runs only where the visit records it).
 #[inline(always)]
 fn sift<'s, const BONDS: bool, const FRICTION: bool>(
     model: &Model,
     particles: &Particles,
     targets: &PairTargets<'_>,
     window: &Window<'s>,
+    near_skin: f64,
     batch: &mut Batch<'s>,
 ) {
     // Known at compile time to be `None` where the instantiation leaves the physics out.
@@ -617,10 +703,12 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
     // One loop per image rule, so that the rule is not tested per slot.
     let slots = SiftedWindow {
         window,
+        slab: batch.slab,
         states,
         histories,
         x_a,
         r_a,
+        near_skin,
         minimum_image,
     };
     batch.kept_count = match model.periodic.as_ref().filter(|_| minimum_image) {
@@ -634,16 +722,19 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
 /// What [`sift`] needs of one window.
 struct SiftedWindow<'w, 's, 't> {
     window: &'w Window<'s>,
+    slab: &'s SlabVisit<'s>,
     states: Option<&'t Scatter<'t, BondState, PerSlot>>,
     histories: Option<&'t HistoryTargets<'t>>,
     x_a: DVec3,
     r_a: f64,
+    near_skin: f64,
     minimum_image: bool,
 }
 
 impl<'s> SiftedWindow<'_, 's, '_> {
     /// Writes every slot to `kept[count..]` and keeps those that need work by advancing
-    /// `count`, which it returns; `image` maps `x_b − x_a` to the separation.
+    /// `count`, which it returns, and records the near ones; `image` maps `x_b − x_a` to the
+    /// separation.
     #[inline(always)]
     fn sift(
         &self,
@@ -657,7 +748,8 @@ impl<'s> SiftedWindow<'_, 's, '_> {
             let b = partner.index();
             let separation = image(particles.position[b] - self.x_a);
             let reach = self.r_a + particles.radius[b];
-            let touching = separation.length_squared() < reach * reach;
+            let distance_squared = separation.length_squared();
+            let touching = distance_squared < reach * reach;
             let bonded = self
                 .states
                 .is_some_and(|states| states.read(slot) != BondState::Unbonded);
@@ -671,6 +763,10 @@ impl<'s> SiftedWindow<'_, 's, '_> {
                 minimum_image: self.minimum_image,
             });
             count += usize::from(touching | bonded | sprung);
+            let near_reach = reach + self.near_skin;
+            if distance_squared < near_reach * near_reach {
+                self.slab.record_near(self.window, slot);
+            }
         }
         count
     }
