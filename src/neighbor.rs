@@ -53,12 +53,19 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::periodic::Periodic;
-use crate::scatter::{NearPair, NearVisit, SlabVisit, Window};
+use crate::scatter::{NearList, NearPair, NearVisit, SlabVisit, Window};
 
 /// The near skin as a fraction of the skin: small enough that the near lists hold few pairs
 /// beyond the touching ones (about 2.3 slots per particle on the LIGGGHTS bed, against 4.8
 /// candidates), large enough that a settled bed refreshes them every hundred steps or so.
 pub const NEAR_SKIN_FRACTION: f64 = 0.125;
+
+thread_local! {
+    /// Where a visit records its slab's near list before it is copied (`visit_slabs`), kept by
+    /// the thread between visits.
+    static RECORDING: std::cell::RefCell<Vec<NearPair>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
 
 /// Source of [`NeighborList::generation`]: unique over the process, so that near lists recorded
 /// for one list (or one build of it) are never read with another.
@@ -102,7 +109,7 @@ pub struct NearPairs {
     generation: u64,
     /// Each slab's entries, behind a lock only so that the concurrent visits of a colour phase
     /// can each take their own (never contended).
-    slabs: Vec<Mutex<Vec<NearPair>>>,
+    slabs: Vec<Mutex<NearList>>,
 }
 
 impl Clone for NearPairs {
@@ -125,7 +132,7 @@ impl NearPairs {
     pub fn len(&self) -> usize {
         self.slabs
             .iter()
-            .map(|slab| slab.lock().expect("no visit panicked").len())
+            .map(|slab| slab.lock().expect("no visit panicked").pairs.len())
             .sum()
     }
 
@@ -613,9 +620,9 @@ impl NeighborList {
         M: Fn(R, R) -> R + Sync + Send,
     {
         let record = refresh || !near.belong_to(self) || near.slabs.len() != self.slab_count();
+        // (Recording empties each slab's list before it writes it: no stale entry survives.)
         if record {
             near.generation = 0;
-            near.slabs.clear();
             near.slabs.resize_with(self.slab_count(), Mutex::default);
         }
         let total = self.visit_slabs(parallel, Some((&*near, record)), identity, visit, merge);
@@ -645,19 +652,26 @@ impl NeighborList {
             let mut partial = identity.clone();
             let mut held =
                 near.map(|(pairs, _)| pairs.slabs[slab].lock().expect("no visit panicked"));
-            let record = near.is_some_and(|(_, record)| record);
-            // A list being recorded starts empty; its allocation is reused.
-            let recording = std::cell::RefCell::new(match held.as_mut() {
-                Some(list) if record => {
-                    list.clear();
-                    std::mem::take(&mut **list)
-                }
-                _ => Vec::new(),
+            // A slab whose list could not hold every near slot records it at every pass.
+            let record = near.is_some_and(|(_, record)| record)
+                || held.as_ref().is_some_and(|list| !list.complete);
+            // A list is recorded into this thread's scratch and then copied into the slab's
+            // allocation, which is replaced only when too small (at the size needed and a
+            // sixteenth more): grown by pushes, each slab's list would keep up to half its
+            // size as slack, and reallocated at every refresh, the heap would fill with holes
+            // (the near lists are a few per cent of the 97.2k bed's peak memory).
+            let scratch = RECORDING.with(|scratch| {
+                let mut pairs = scratch.take();
+                pairs.clear();
+                std::cell::RefCell::new(NearList {
+                    pairs,
+                    complete: true,
+                })
             });
             let near_visit = match held.as_ref() {
                 None => NearVisit::Off,
-                Some(_) if record => NearVisit::Record(&recording),
-                Some(list) => NearVisit::Read(list.as_slice()),
+                Some(_) if record => NearVisit::Record(&scratch),
+                Some(list) => NearVisit::Read(list.pairs.as_slice()),
             };
             // SAFETY: every partner lies in its owner's slab or the successor (checked at the
             // end of `build`); the slabs running concurrently are those of one colour phase,
@@ -677,12 +691,17 @@ impl NeighborList {
                 )
             };
             visit(&mut partial, &visit_of_slab);
+            let recorded = scratch.into_inner();
             if let Some(list) = held.as_mut().filter(|_| record) {
-                let mut recorded = recording.into_inner();
-                // Recorded by pushes: the slack would stay until the next refresh.
-                recorded.shrink_to_fit();
-                **list = recorded;
+                if list.pairs.capacity() < recorded.pairs.len() {
+                    let size = recorded.pairs.len();
+                    list.pairs = Vec::with_capacity(size + size / 16);
+                }
+                list.pairs.clear();
+                list.pairs.extend_from_slice(&recorded.pairs);
+                list.complete = recorded.complete;
             }
+            RECORDING.with(|kept| kept.replace(recorded.pairs));
             partial
         };
         let mut total = identity.clone();

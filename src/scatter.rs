@@ -64,6 +64,8 @@ pub struct Window<'a> {
     slabs: [u32; 2],
     /// See [`Window::needs_minimum_image`].
     crossing: bool,
+    /// The owner's place among its slab's members (`u32::MAX` outside [`SlabVisit::windows`]).
+    ordinal: u32,
     thread: ThreadBound,
 }
 
@@ -109,12 +111,22 @@ pub struct OwnSlab<'w> {
     thread: ThreadBound,
 }
 
-/// One entry of a slab's near list: an owner of the slab and one of its slots, as plain
-/// indices. Only [`SlabVisit::record_near`] makes one, from a visit's own tokens.
+/// One entry of a slab's near list, in 4 bytes (the near lists are about 2.7 entries per
+/// particle on a packed bed): the owner's place among the slab's members (the high 24 bits) and
+/// the slot's place among the owner's slots (the low 8). Only [`SlabVisit::record_near`] makes
+/// one, from a visit's own tokens.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct NearPair {
-    owner: u32,
-    slot: u32,
+pub struct NearPair(u32);
+
+/// A slab's near list as recorded: its entries, and whether it holds every near slot (a slot
+/// whose place does not fit a [`NearPair`], past 2^24 members or 256 slots of one owner, is
+/// left out, and the slab then records its list at every pass).
+#[derive(Debug, Default)]
+pub struct NearList {
+    /// The entries, owner by owner and slot by slot.
+    pub(crate) pairs: Vec<NearPair>,
+    /// Every near slot is in `pairs`.
+    pub(crate) complete: bool,
 }
 
 /// What a slab visit does with its slab's near list.
@@ -122,10 +134,10 @@ pub struct NearPair {
 pub enum NearVisit<'a> {
     /// The pass keeps no near list.
     Off,
-    /// The list recorded at the last refresh, to read.
+    /// The list recorded at the last refresh, complete, to read.
     Read(&'a [NearPair]),
-    /// The list to record anew (empty when the visit begins).
-    Record(&'a RefCell<Vec<NearPair>>),
+    /// The list to record anew (empty and complete when the visit begins).
+    Record(&'a RefCell<NearList>),
 }
 
 /// The tokens of one near-list entry: the owner, the slot, its partner, and whether the owner's
@@ -195,12 +207,12 @@ impl<'a> SlabVisit<'a> {
 
     /// The windows of the slab's owners, in ascending order.
     pub fn windows(&self) -> impl Iterator<Item = Window<'a>> + '_ {
-        self.members.iter().map(move |&k| {
+        self.members.iter().zip(0..).map(move |(&k, ordinal)| {
             let k = k as usize;
             let slots = self.offsets[k] as usize..self.offsets[k + 1] as usize;
             // SAFETY: the visit's contract covers the windows of its owners, whose tokens live
             // no longer than it does (the visit's lifetime bounds them).
-            unsafe {
+            let mut window = unsafe {
                 Window::pair(
                     k,
                     slots,
@@ -210,7 +222,9 @@ impl<'a> SlabVisit<'a> {
                     self.successor,
                     self.crossing[k],
                 )
-            }
+            };
+            window.ordinal = ordinal;
+            window
         })
     }
 
@@ -232,16 +246,21 @@ impl<'a> SlabVisit<'a> {
         matches!(self.near, NearVisit::Record(_))
     }
 
-    /// Adds `slot` of `window` (a window of this visit) to the near list being recorded; does
-    /// nothing unless the visit records one.
+    /// Adds `slot` of `window` (a window of [`SlabVisit::windows`] of this visit) to the near
+    /// list being recorded; does nothing unless the visit records one.
     #[inline]
     pub fn record_near(&self, window: &Window<'a>, slot: Slot<'a>) {
         debug_assert!(window.slots.contains(&slot.index), "slot of another window");
         if let NearVisit::Record(list) = &self.near {
-            list.borrow_mut().push(NearPair {
-                owner: u32::try_from(window.owner).expect("particle indices fit u32"),
-                slot: u32::try_from(slot.index).expect("slot indices fit u32"),
-            });
+            let place = slot.index - window.slots.start;
+            let mut list = list.borrow_mut();
+            if window.ordinal < 1 << 24 && place < 1 << 8 {
+                list.pairs.push(NearPair(
+                    window.ordinal << 8 | u32::try_from(place).expect("< 256"),
+                ));
+            } else {
+                list.complete = false;
+            }
         }
     }
 
@@ -267,9 +286,29 @@ impl<'a> SlabVisit<'a> {
         let NearVisit::Read(list) = &self.near else {
             panic!("this visit reads no near list")
         };
-        list[range].iter().map(|pair| {
-            let (owner, slot) = (pair.owner as usize, pair.slot as usize);
+        // After a rebuild's reordering a slab's members are consecutive indices: the owner is
+        // then found without a load (a branch that goes the same way for the whole visit).
+        let consecutive = match (self.members.first(), self.members.last()) {
+            (Some(&first), Some(&last)) if (last - first) as usize + 1 == self.members.len() => {
+                Some(first)
+            }
+            _ => None,
+        };
+        list[range].iter().map(move |pair| {
+            let ordinal = pair.0 >> 8;
+            let owner = match consecutive {
+                Some(first) => {
+                    debug_assert!((ordinal as usize) < self.members.len());
+                    (first + ordinal) as usize
+                }
+                None => self.members[ordinal as usize] as usize,
+            };
+            let slot = self.offsets[owner] as usize + (pair.0 & 0xff) as usize;
             let partner = self.partners[slot];
+            debug_assert!(
+                slot < self.offsets[owner + 1] as usize,
+                "near pair {pair:?}: not a slot of owner {owner}"
+            );
             debug_assert!(
                 self.slab_of
                     .get(partner as usize)
@@ -327,6 +366,7 @@ impl<'a> Window<'a> {
             slab_of,
             slabs: [slab, successor],
             crossing,
+            ordinal: u32::MAX,
             thread: PhantomData,
         }
     }
@@ -344,6 +384,7 @@ impl<'a> Window<'a> {
             slab_of: &[],
             slabs: [u32::MAX; 2],
             crossing: false,
+            ordinal: u32::MAX,
             thread: PhantomData,
         }
     }
@@ -627,6 +668,79 @@ mod tests {
         );
         assert_eq!(values, [1.0, 0.0, 2.0, 0.0, 2.0]);
         assert_eq!(slot_values, [0, 0, 0, 1, 1, 0]);
+    }
+
+    /// A near list recorded by one visit reads back, in a later visit of the same slab, as the
+    /// tokens of the slots recorded; a slot past the 256th of its owner does not fit an entry and
+    /// leaves the list incomplete (recorded anew at every pass).
+    #[test]
+    fn a_near_list_reads_back_the_slots_it_recorded_or_says_it_is_incomplete() {
+        // Particles 0 and 2 own slabs 0's slots: owner 2 has 300 slots, all with partner 1.
+        let members = [0, 2];
+        let offsets = [0, 2, 2, 302];
+        let mut partners = vec![1; 302];
+        partners[0] = 3;
+        let slab_of = [0, 1, 0, 1];
+        let crossing = [false, false, true, false];
+        let recording = RefCell::new(NearList {
+            pairs: Vec::new(),
+            complete: true,
+        });
+        let visit = |near| {
+            // SAFETY: single-threaded test; the partners (1 and 3) lie in slab 1, the successor.
+            unsafe {
+                SlabVisit::new(
+                    0, 1, &members, &offsets, &partners, &slab_of, &crossing, near,
+                )
+            }
+        };
+        let recorder = visit(NearVisit::Record(&recording));
+        assert!(recorder.records_near());
+        for window in recorder.windows() {
+            for (i, (slot, _)) in window.pairs().enumerate() {
+                if [0, 1, 7, 255].contains(&i) {
+                    recorder.record_near(&window, slot);
+                }
+            }
+        }
+        let recorded = recording.take();
+        assert!(recorded.complete);
+        assert_eq!(recorded.pairs.len(), 6);
+        let reader = visit(NearVisit::Read(&recorded.pairs));
+        assert!(!reader.records_near());
+        let read: Vec<_> = reader
+            .near_pairs(0..reader.near_count())
+            .map(|t| {
+                (
+                    t.owner.index(),
+                    t.slot.index(),
+                    t.partner.index(),
+                    t.minimum_image,
+                )
+            })
+            .collect();
+        assert_eq!(
+            read,
+            [
+                (0, 0, 3, false),
+                (0, 1, 1, false),
+                (2, 2, 1, true),
+                (2, 3, 1, true),
+                (2, 9, 1, true),
+                (2, 257, 1, true)
+            ]
+        );
+        // Owner 2's slot 256 (its 257th) has no place in an entry.
+        let recording = RefCell::new(NearList {
+            pairs: Vec::new(),
+            complete: true,
+        });
+        let recorder = visit(NearVisit::Record(&recording));
+        let owner_2 = recorder.windows().nth(1).expect("two owners");
+        let (slot, _) = owner_2.nth_pair(256);
+        recorder.record_near(&owner_2, slot);
+        assert!(!recording.borrow().complete);
+        assert!(recording.borrow().pairs.is_empty());
     }
 
     #[test]

@@ -766,6 +766,8 @@ impl Simulation {
         }
         // The pools' write buffers are scratch between passes: gone before the held copies.
         self.tangential.drop_spare_buffers();
+        // The near lists name the old slots: no use after the rebuild, freed before its peak.
+        self.near = NearPairs::default();
         crate::memory::return_free_pages();
         let (states, tangential, list) = (&self.bond_states, &self.tangential, &self.neighbors);
         let ids = &self.particles.id;
