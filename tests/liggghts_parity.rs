@@ -38,14 +38,6 @@ fn liggghts_temperatures() -> Vec<f64> {
     rows.into_iter().map(|r| r.1).collect()
 }
 
-/// One of the LIGGGHTS scenes with its import path made absolute.
-fn liggghts_scene(name: &str) -> am_sim::simulation::Simulation {
-    common::simulation(&common::scene_text(name).replace(
-        "file = \"data/",
-        concat!("file = \"", env!("CARGO_MANIFEST_DIR"), "/scenes/data/"),
-    ))
-}
-
 /// `key=value` from the stored coord.py line, e.g. `contacts(overlap>0)=15694`.
 fn coord_field(key: &str) -> f64 {
     let text = std::fs::read_to_string(concat!(
@@ -68,7 +60,7 @@ fn coord_field(key: &str) -> f64 {
 
 #[test]
 fn the_bed_compacts_into_as_many_contacts_as_in_liggghts() {
-    let mut sim = liggghts_scene("liggghts_bed_20k.toml");
+    let mut sim = common::liggghts_scene("liggghts_bed_20k.toml");
     for _ in 0..2000 {
         sim.step();
     }
@@ -94,7 +86,7 @@ fn the_bed_compacts_into_as_many_contacts_as_in_liggghts() {
 
 #[test]
 fn the_heat_variant_moves_the_heat_liggghts_moves() {
-    let mut sim = liggghts_scene("liggghts_bed_20k_heat.toml");
+    let mut sim = common::liggghts_scene("liggghts_bed_20k_heat.toml");
     let n = sim.particles.len();
     // am-sim numbers imported particles 0.. in the order of their file ids; its storage order
     // is spatial, so temperatures are gathered by id.

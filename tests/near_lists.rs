@@ -84,10 +84,7 @@ fn bonds_and_heat_are_the_same_with_and_without_near_lists() {
 /// A settled bed refreshes rarely: the lists are in use.
 #[test]
 fn a_periodic_bed_is_the_same_with_and_without_near_lists_and_rarely_refreshes() {
-    let sim = common::simulation(&common::scene_text("liggghts_bed_20k.toml").replace(
-        "file = \"data/",
-        concat!("file = \"", env!("CARGO_MANIFEST_DIR"), "/scenes/data/"),
-    ));
+    let sim = common::liggghts_scene("liggghts_bed_20k.toml");
     let steps = 600;
     let sim = same_with_and_without(sim, steps);
     // Largest speed about 0.02 m/s, dt = 1e-7 s, near skin 1.1 µm: a refresh every ~250 steps.

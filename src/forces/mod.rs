@@ -429,15 +429,20 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
         let separation = pair_separation(periodic, particles, a, b);
         let reach = particles.radius[a] + particles.radius[b];
         let touching = separation.length_squared() < reach * reach;
-        let bonded = states.is_some_and(|states| states.read(slot) != BondState::Unbonded);
-        let sprung = histories.is_some_and(|histories| histories.holds(slot));
-        batch.kept[count] = Some(KeptSlot {
+        let kept_slot = KeptSlot {
             owner,
             partner,
             slot,
             minimum_image,
-        });
-        count += usize::from(touching | bonded | sprung);
+        };
+        count = keep(
+            &mut batch.kept,
+            count,
+            kept_slot,
+            touching,
+            states,
+            histories,
+        );
     }
     batch.kept_count = count;
 }
@@ -750,19 +755,20 @@ impl<'s> SiftedWindow<'_, 's, '_> {
             let reach = self.r_a + particles.radius[b];
             let distance_squared = separation.length_squared();
             let touching = distance_squared < reach * reach;
-            let bonded = self
-                .states
-                .is_some_and(|states| states.read(slot) != BondState::Unbonded);
-            let sprung = self
-                .histories
-                .is_some_and(|histories| histories.holds(slot));
-            kept[count] = Some(KeptSlot {
+            let kept_slot = KeptSlot {
                 owner,
                 partner,
                 slot,
                 minimum_image: self.minimum_image,
-            });
-            count += usize::from(touching | bonded | sprung);
+            };
+            count = keep(
+                kept,
+                count,
+                kept_slot,
+                touching,
+                self.states,
+                self.histories,
+            );
             let near_reach = reach + self.near_skin;
             if distance_squared < near_reach * near_reach {
                 self.slab.record_near(self.window, slot);
@@ -770,6 +776,25 @@ impl<'s> SiftedWindow<'_, 's, '_> {
         }
         count
     }
+}
+
+/// The rule of both sifts ([`sift`], [`sift_near`]): writes `slot` to `kept[count]` and returns
+/// the end of the kept slots, advanced past it if the pair touches or its slot holds a bond state
+/// or a spring (which must be cleared when it comes apart). Without a branch: whether a candidate
+/// touches is a coin toss for the branch predictor.
+#[inline(always)]
+fn keep<'s>(
+    kept: &mut [Option<KeptSlot<'s>>],
+    count: usize,
+    slot: KeptSlot<'s>,
+    touching: bool,
+    states: Option<&Scatter<'_, BondState, PerSlot>>,
+    histories: Option<&HistoryTargets<'_>>,
+) -> usize {
+    let bonded = states.is_some_and(|states| states.read(slot.slot) != BondState::Unbonded);
+    let sprung = histories.is_some_and(|histories| histories.holds(slot.slot));
+    kept[count] = Some(slot);
+    count + usize::from(touching | bonded | sprung)
 }
 
 /// The kept slots of the batch, in order: the pairs apart have their slot state cleared at once;

@@ -127,6 +127,16 @@ pub fn scene_text(name: &str) -> String {
         .expect("scene file")
 }
 
+/// One of the shipped LIGGGHTS scenes (`scenes/liggghts_bed_*.toml`), set up with its import
+/// path made absolute.
+#[must_use]
+pub fn liggghts_scene(name: &str) -> Simulation {
+    simulation(&scene_text(name).replace(
+        "file = \"data/",
+        concat!("file = \"", env!("CARGO_MANIFEST_DIR"), "/scenes/data/"),
+    ))
+}
+
 /// `scenes/laser_track.toml` shortened to `duration` [s], frames every `every` steps, no CSV.
 #[must_use]
 pub fn short_track(duration: f64, every: u64) -> String {
