@@ -764,8 +764,6 @@ impl Simulation {
                 *x = periodic.wrap(*x);
             }
         }
-        // The pools' write buffers are scratch between passes: gone before the held copies.
-        self.tangential.drop_spare_buffers();
         // The near lists name the old slots: no use after the rebuild, freed before its peak.
         self.near = NearPairs::default();
         crate::memory::return_free_pages();
