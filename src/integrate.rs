@@ -19,16 +19,22 @@ use crate::particles::{Particles, Rotation};
 /// Particles per task of the integration passes.
 const CHUNK: usize = 1024;
 
+/// The per-particle sums the force pass adds into besides the forces and torques (with
+/// `[thermal]`: the heat flows \[W\] and the total conductances \[W/K\]), which [`kick_drift`]
+/// leaves at zero with them.
+pub type Sums<'a> = Option<(&'a mut [f64], &'a mut [f64])>;
+
 /// The opening half of a step, in one pass over the particles: the half kick and the drift
 /// (M.30, M.31) and, with rotation, the half kick of ω (M.62). The half kick is the last reader
-/// of the step's forces and torques: the pass leaves them at zero, ready for the next force pass
-/// to add into (`forces::compute` with `cleared`). Returns whether `moved_too_far(k, x)` held
-/// for some particle's new position `x` (the neighbour list's rebuild test, taken in the same
-/// pass: one parallel region and one sweep of the arrays instead of five), and the largest
-/// speed of the drift.
+/// of the step's forces and torques: the pass leaves them at zero, and `sums` too, ready for the
+/// next force pass to add into (`forces::compute` with `cleared`). Returns whether
+/// `moved_too_far(k, x)` held for some particle's new position `x` (the neighbour list's rebuild
+/// test, taken in the same pass: one parallel region and one sweep of the arrays instead of
+/// five, seven with heat), and the largest speed of the drift.
 pub fn kick_drift(
     particles: &mut Particles,
     rotation: Option<&mut Rotation>,
+    sums: Sums<'_>,
     dt: f64,
     moved_too_far: impl Fn(usize, DVec3) -> bool + Sync,
 ) -> Drift {
@@ -45,6 +51,7 @@ pub fn kick_drift(
     let (omega, torque) = rotation
         .map(|r| (r.angular_velocity.as_mut_slice(), r.torque.as_mut_slice()))
         .unzip();
+    let (first_sum, second_sum) = sums.unzip();
     let chunks: Vec<_> = position
         .chunks_mut(CHUNK)
         .zip(velocity.chunks_mut(CHUNK))
@@ -53,8 +60,9 @@ pub fn kick_drift(
                 .chunks_mut(CHUNK)
                 .zip(optional_chunks(omega).zip(optional_chunks(torque))),
         )
+        .zip(optional_chunks(first_sum).zip(optional_chunks(second_sum)))
         .collect();
-    let drift = each_chunk(chunks, parallel, |first, ((x, v), (f, angular))| {
+    let drift = each_chunk(chunks, parallel, |first, (((x, v), (f, angular)), sums)| {
         let mut moved = false;
         let mut max_speed_squared: f64 = 0.0;
         for (k, ((x, v), f)) in (first..).zip(x.iter_mut().zip(v.iter_mut()).zip(f.iter_mut())) {
@@ -70,6 +78,10 @@ pub fn kick_drift(
         if let (Some(w), Some(t)) = angular {
             kick_angular(w, t, first, mass, radius, dt);
             t.fill(DVec3::ZERO);
+        }
+        if let (Some(a), Some(b)) = sums {
+            a.fill(0.0);
+            b.fill(0.0);
         }
         (moved, max_speed_squared)
     });
@@ -245,7 +257,10 @@ mod tests {
             for far in [3, count - 2] {
                 let (mut particles, mut rotation) = row(count);
                 let dt = 0.5;
-                let drift = kick_drift(&mut particles, Some(&mut rotation), dt, |k, x| {
+                let mut heat_flow: Vec<f64> = (0..count).map(|k| k as f64 + 1.0).collect();
+                let mut conductance = heat_flow.clone();
+                let sums = Some((heat_flow.as_mut_slice(), conductance.as_mut_slice()));
+                let drift = kick_drift(&mut particles, Some(&mut rotation), sums, dt, |k, x| {
                     // Particle k started at x = k: the test sees the drifted position.
                     k == far && x.y > 0.0
                 });
@@ -267,6 +282,7 @@ mod tests {
                 // The half kick was the last reader: forces and torques are left at zero.
                 assert!(particles.force.iter().all(|f| *f == DVec3::ZERO));
                 assert!(rotation.torque.iter().all(|t| *t == DVec3::ZERO));
+                assert!(heat_flow.iter().chain(&conductance).all(|q| *q == 0.0));
                 // A force pass fills them again; the closing kick: v_z and ω grow by as much.
                 let (refilled, _) = row(count);
                 particles.force.clone_from(&refilled.force);
@@ -280,7 +296,7 @@ mod tests {
                     assert!((w - 0.5 * kf / 0.4).abs() <= 1e-12 * kf, "ω of {k}: {w}");
                 }
                 // Without rotation the torques are neither used nor cleared.
-                let none = kick_drift(&mut particles, None, dt, |_, _| false);
+                let none = kick_drift(&mut particles, None, None, dt, |_, _| false);
                 assert!(!none.moved_too_far, "nobody moved too far");
                 assert!(particles.force.iter().all(|f| *f == DVec3::ZERO));
                 assert_eq!(rotation.torque, refilled.torque);

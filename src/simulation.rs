@@ -822,9 +822,10 @@ impl Simulation {
     }
 
     /// The force pass (steps 4-5). With `[thermal]` it also computes the contact conductances
-    /// and the first substep's heat flows. `cleared`: the forces and torques are already zero, as
-    /// the step's opening pass leaves them (the pass then skips its own zeroing: one parallel
-    /// region and one sweep fewer per step).
+    /// and the first substep's heat flows. `cleared`: the forces and torques (and with heat, the
+    /// heat flows and total conductances) are already zero, as the step's opening pass leaves
+    /// them (the pass then skips its own zeroing: one parallel region and one sweep fewer per
+    /// step, three with heat).
     fn compute_forces(&mut self, cleared: bool) -> ForceSummary {
         let heat = match (&self.model.thermal, &mut self.thermal) {
             (Some(model), Some(state)) => {
@@ -947,17 +948,27 @@ impl Simulation {
     pub fn step(&mut self) {
         let dt = self.model.dt;
         let neighbors = &self.neighbors;
-        let drift =
-            integrate::kick_drift(&mut self.particles, self.rotation.as_mut(), dt, |k, x| {
-                neighbors.moved_too_far(k, x)
-            });
+        // The force pass's heat sums are zeroed with the forces (its `cleared`).
+        let sums = self.thermal.as_mut().map(|t| {
+            (
+                t.heat_flow.as_mut_slice(),
+                t.total_conductance.as_mut_slice(),
+            )
+        });
+        let drift = integrate::kick_drift(
+            &mut self.particles,
+            self.rotation.as_mut(),
+            sums,
+            dt,
+            |k, x| neighbors.moved_too_far(k, x),
+        );
         self.near_travel += dt * drift.max_speed;
         if drift.moved_too_far || self.neighbors.is_stale(self.particles.len()) {
             self.rebuild_neighbors();
         }
         self.absorb_laser();
-        // The opening pass left the forces and torques at zero (a rebuild permutes and drops
-        // particles but keeps zeros zero).
+        // The opening pass left the forces, torques and heat sums at zero (a rebuild permutes
+        // and drops particles but keeps zeros zero).
         let summary = self.compute_forces(true);
         self.peak_overlap_ratio = self.peak_overlap_ratio.max(summary.max_overlap_ratio);
         self.force_summary = summary;

@@ -205,9 +205,10 @@ fn tangential_step<const ROLLING: bool>(
 /// The force pass (steps 4-5 of the step order): every particle's force, with rotation its
 /// torque, with `[thermal]` its first-substep heat flows and total conductances; bond states
 /// (`states`, per slot, given when the scene has a bond law) and tangential histories advance by
-/// one step. Returns what the per-step guards need. `cleared`: the forces and torques are
-/// already zero (the step's opening pass, `integrate::kick_drift`, leaves them so), and the
-/// pass adds into them without zeroing them first. `near`: the near lists, recorded anew if
+/// one step. Returns what the per-step guards need. `cleared`: the forces, torques, heat flows
+/// and total conductances are already zero (the step's opening pass, `integrate::kick_drift`,
+/// leaves them so), and the pass adds into them without zeroing them first (with heat: three
+/// parallel regions fewer per step). `near`: the near lists, recorded anew if
 /// `refresh_near` (or if they do not belong to the list's build), read otherwise.
 #[allow(clippy::too_many_arguments)]
 pub fn compute(
@@ -238,7 +239,7 @@ pub fn compute(
     if let Some(r) = rotation.as_mut().filter(|_| !cleared) {
         fill(&mut r.torque, DVec3::ZERO, parallel);
     }
-    if let Some(h) = &mut heat {
+    if let Some(h) = heat.as_mut().filter(|_| !cleared) {
         fill(h.heat_flow, 0.0, parallel);
         fill(h.total_conductance, 0.0, parallel);
     }
