@@ -143,25 +143,34 @@ impl NearPairs {
     }
 }
 
-/// Pairs that carry state, with their values `T`, by id key, taken from a list before it is
-/// rebuilt (see [`NeighborList::held_pairs`]). Holding the values (not slots of the old arrays)
-/// lets the old per-slot arrays be freed before the new ones are allocated.
+/// Pairs that carry state, with their values `T`, taken from a list before it is rebuilt (see
+/// [`NeighborList::held_pairs`]) and keyed by the particles' indices at that time, which the
+/// reorder of the rebuild maps to the new ones (its `order`, the `origin` of
+/// [`NeighborList::carry`]). Holding the values (not slots of the old arrays) lets the old
+/// per-slot arrays be freed before the new ones are allocated.
 #[derive(Debug, Clone)]
 pub struct HeldPairs<T> {
-    /// `((id_lo, id_hi | OWNER_WAS_LOWER), value)`, sorted by key. The flag (whether the old
-    /// owner had the lower id) rides in the top bit of `id_hi`, which ids never reach: an entry
-    /// is then 16 bytes plus the value, not 24 (these entries are the rebuild's peak memory).
-    entries: Vec<((u64, u64), T)>,
+    /// `(lower << 32 | higher | OWNER_WAS_LOWER, value)`, sorted by key: the two old indices in
+    /// 8 bytes, and the flag (whether the old owner had the lower index) in bit 31, which the
+    /// indices never reach (fewer than 2^31 particles). An entry is then 8 bytes plus the value,
+    /// 40 for a spring (16 with ids as the key): these entries are the rebuild's peak memory.
+    entries: Vec<(u64, T)>,
 }
 
 /// The flag bit of a held pair's key (see [`HeldPairs`]).
-const OWNER_WAS_LOWER: u64 = 1 << 63;
+const OWNER_WAS_LOWER: u64 = 1 << 31;
+
+/// The key of the pair of old indices `a` and `b`, without the flag.
+fn held_key(a: u32, b: u32) -> u64 {
+    (u64::from(a.min(b)) << 32) | u64::from(a.max(b))
+}
 
 impl<T> HeldPairs<T> {
-    /// The value held for the pair of the particles with ids `owner` and `partner`, and whether
-    /// its owner changed ends (a history oriented owner → partner then flips sign).
+    /// The value held for the pair of the particles that had the indices `owner` and
+    /// `partner` when it was held, and whether its owner changed ends (a history oriented
+    /// owner → partner then flips sign).
     #[must_use]
-    pub fn find(&self, owner: u64, partner: u64) -> Option<(&T, bool)> {
+    pub fn find(&self, owner: u32, partner: u32) -> Option<(&T, bool)> {
         let (e, turned) = self.position(owner, partner)?;
         Some((&self.entries[e].1, turned))
     }
@@ -169,13 +178,13 @@ impl<T> HeldPairs<T> {
     /// Where [`Self::find`] finds the pair: its entry number (for [`Self::value`]) and whether
     /// its owner changed ends.
     #[must_use]
-    pub fn position(&self, owner: u64, partner: u64) -> Option<(usize, bool)> {
-        let key = (owner.min(partner), owner.max(partner));
+    pub fn position(&self, owner: u32, partner: u32) -> Option<(usize, bool)> {
+        let key = held_key(owner, partner);
         let e = self
             .entries
-            .binary_search_by(|((lo, hi), _)| (*lo, hi & !OWNER_WAS_LOWER).cmp(&key))
+            .binary_search_by(|(k, _)| (k & !OWNER_WAS_LOWER).cmp(&key))
             .ok()?;
-        let owner_was_lower = self.entries[e].0.1 & OWNER_WAS_LOWER != 0;
+        let owner_was_lower = self.entries[e].0 & OWNER_WAS_LOWER != 0;
         Some((e, owner_was_lower != (owner < partner)))
     }
 
@@ -740,38 +749,43 @@ impl NeighborList {
     }
 
     /// The pairs for which `held(slot, owner)` gives a value (those with state worth keeping),
-    /// by id key, before the particles are reordered and the list rebuilt.
+    /// keyed by the particles' current indices, before the particles are reordered and the list
+    /// rebuilt.
+    ///
+    /// # Panics
+    /// With 2^31 particles or more (the key's flag bit).
     #[must_use]
-    pub fn held_pairs<T>(
-        &self,
-        ids: &[u64],
-        held: impl Fn(usize, usize) -> Option<T>,
-    ) -> HeldPairs<T> {
+    pub fn held_pairs<T>(&self, held: impl Fn(usize, usize) -> Option<T>) -> HeldPairs<T> {
         // Counted first, so that the entries take exactly their size (they coexist with the old
         // and the new list: the rebuild's peak memory).
         let count = self
             .pairs()
             .filter(|&(p, owner, _)| held(p, owner).is_some())
             .count();
-        let mut entries: Vec<((u64, u64), T)> = Vec::with_capacity(count);
+        let index = |k: usize| -> u32 {
+            let k = u32::try_from(k).expect("fewer than 2^32 particles");
+            assert!(u64::from(k) < OWNER_WAS_LOWER, "fewer than 2^31 particles");
+            k
+        };
+        let mut entries: Vec<(u64, T)> = Vec::with_capacity(count);
         entries.extend(self.pairs().filter_map(|(p, owner, partner)| {
-            let (a, b) = (ids[owner], ids[partner]);
-            assert!(a.max(b) < OWNER_WAS_LOWER, "particle ids below 2^63");
+            let (a, b) = (index(owner), index(partner));
             let flag = if a < b { OWNER_WAS_LOWER } else { 0 };
-            held(p, owner).map(|value| ((a.min(b), a.max(b) | flag), value))
+            held(p, owner).map(|value| (held_key(a, b) | flag, value))
         }));
-        entries.sort_unstable_by_key(|((lo, hi), _)| (*lo, hi & !OWNER_WAS_LOWER));
+        entries.sort_unstable_by_key(|(key, _)| key & !OWNER_WAS_LOWER);
         HeldPairs { entries }
     }
 
     /// Per-slot values of the rebuilt list: `value(held, turned)` for each held pair, `turned`
     /// when its owner changed ends (a history oriented owner → partner flips sign), and
-    /// `U::default()` for the rest. A held pair that left the list was apart by more than the
-    /// skin; were it bonded, it would break at the next pass anyway (δ < 0 ≤ δ_crit).
+    /// `U::default()` for the rest. `origin[k]`: particle `k`'s index when the pairs were held
+    /// (the reorder's `order`). A held pair that left the list was apart by more than the skin;
+    /// were it bonded, it would break at the next pass anyway (δ < 0 ≤ δ_crit).
     #[must_use]
     pub fn carry<T: Sync, U: Copy + Default + Send>(
         &self,
-        ids: &[u64],
+        origin: &[u32],
         held: &HeldPairs<T>,
         value: impl Fn(&T, bool) -> U + Sync,
     ) -> Vec<U> {
@@ -779,7 +793,7 @@ impl NeighborList {
             return vec![U::default(); self.partners.len()];
         }
         let lookup = |owner: usize, partner: usize| -> U {
-            held.find(ids[owner], ids[partner])
+            held.find(origin[owner], origin[partner])
                 .map_or_else(U::default, |(v, turned)| value(v, turned))
         };
         // Filled in place, by chunks of owners (a parallel `collect` would hold its pieces and
@@ -1014,21 +1028,27 @@ mod tests {
         // Ids 7, 3, 5. The pair (3, 7) touches; its history is oriented owner → partner.
         let mut positions = vec![DVec3::ZERO, DVec3::X * 1.9, DVec3::X * 10.0];
         let radii = vec![1.0; 3];
-        let mut ids = vec![7, 3, 5];
+        let mut ids = [7, 3, 5];
         let mut list = NeighborList::new(0.5, None);
         list.build(&positions, &radii);
         assert_eq!(list.pair_count(), 1);
         let (_, owner, _) = list.pairs().next().unwrap();
         let history = if ids[owner] == 7 { 1.0 } else { -1.0 };
-        let held = list.held_pairs(&ids, |_, _| Some(history));
-        // Swap the storage order of the two particles and bring id 5 close: the pair (3, 7) must
-        // keep its history, turned if its owner changed ends; the new pair starts empty.
+        let held = list.held_pairs(|_, _| Some(history));
+        // Swap the storage order of the two particles (a reorder with `order` [1, 0, 2]) and
+        // bring id 5 close: the pair (3, 7) must keep its history, turned if its owner changed
+        // ends; the new pair starts empty.
+        let origin = [1, 0, 2];
         positions.swap(0, 1);
         ids.swap(0, 1);
         positions[2] = DVec3::new(3.8, 0.0, 0.0);
         list.build(&positions, &radii);
         assert_eq!(list.pair_count(), 2);
-        let carried = list.carry(&ids, &held, |h: &f64, turned| if turned { -h } else { *h });
+        let carried = list.carry(
+            &origin,
+            &held,
+            |h: &f64, turned| if turned { -h } else { *h },
+        );
         let mut seen = 0;
         for (p, owner, partner) in list.pairs() {
             let key = (ids[owner].min(ids[partner]), ids[owner].max(ids[partner]));

@@ -206,11 +206,13 @@ impl TangentialHistories {
 
     /// The histories of the rebuilt `list`: `value(held, turned)` for each pair `held` before the
     /// rebuild that is still in the list (`turned` when its owner changed ends), none for the
-    /// rest. Each slab's pool is filled in parallel, in the order its owners are visited.
+    /// rest; `origin[k]` is particle `k`'s index when the pairs were held (see
+    /// [`NeighborList::carry`]). Each slab's pool is filled in parallel, in the order its owners
+    /// are visited.
     #[must_use]
     pub fn carry<T: Sync>(
         list: &NeighborList,
-        ids: &[u64],
+        origin: &[u32],
         held: &HeldPairs<T>,
         value: impl Fn(&T, bool) -> TangentialSpring + Sync,
     ) -> Self {
@@ -229,8 +231,8 @@ impl TangentialHistories {
                 for &k in list.slab_members(s) {
                     let k = k as usize;
                     for p in list.slots(k) {
-                        let partner = ids[partners[p] as usize];
-                        if let Some((e, turned)) = held.position(ids[k], partner) {
+                        let partner = origin[partners[p] as usize];
+                        if let Some((e, turned)) = held.position(origin[k], partner) {
                             let e = u32::try_from(e).expect("fewer than 2^32 held pairs");
                             slots.push((p as u32, e, turned));
                         }
@@ -406,18 +408,20 @@ mod tests {
         }
         assert_eq!(histories.entries(), 2);
         assert_eq!(histories.spring_energy(), 10.0 + 11.0);
-        let held = list.held_pairs(&ids, |p, owner| {
+        let held = list.held_pairs(|p, owner| {
             let t = histories.get(&list, p, owner);
             (t != TangentialSpring::default()).then_some(t)
         });
-        // Reverse the storage order: every owner changes ends.
+        // Reverse the storage order (a reorder with `order` [3, 2, 1, 0]): every owner changes
+        // ends.
+        let origin: Vec<u32> = (0..4).rev().collect();
         positions.reverse();
         ids.reverse();
         list.build(&positions, &radii);
         let carried =
             TangentialHistories::carry(
                 &list,
-                &ids,
+                &origin,
                 &held,
                 |t, turned| {
                     if turned { t.turned() } else { *t }

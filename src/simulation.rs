@@ -645,7 +645,8 @@ impl Simulation {
             sim.particles.position.clone()
         };
         sim.neighbors.build(&reference, &sim.particles.radius);
-        sim.carry_pairs(&HeldPairs::default(), &HeldPairs::default());
+        // Nothing held: the pair data come from the restart data below.
+        sim.carry_pairs(&[], &HeldPairs::default(), &HeldPairs::default());
         if !state.bonded.is_empty() && !sim.model.has_bonds() {
             return Err(format!(
                 "the restart data has {} bonds but the scene has no bond law ([bond])",
@@ -768,14 +769,13 @@ impl Simulation {
         self.near = NearPairs::default();
         crate::memory::return_free_pages();
         let (states, tangential, list) = (&self.bond_states, &self.tangential, &self.neighbors);
-        let ids = &self.particles.id;
-        let bonds = list.held_pairs(ids, |p, _| {
+        let bonds = list.held_pairs(|p, _| {
             states
                 .get(p)
                 .copied()
                 .filter(|state| *state != BondState::Unbonded)
         });
-        let springs = list.held_pairs(ids, |p, owner| {
+        let springs = list.held_pairs(|p, owner| {
             let spring = tangential.get(list, p, owner);
             (spring != TangentialSpring::default()).then_some(spring)
         });
@@ -792,7 +792,7 @@ impl Simulation {
         self.reorder(&order);
         let p = &self.particles;
         self.neighbors.build(&p.position, &p.radius);
-        self.carry_pairs(&bonds, &springs);
+        self.carry_pairs(&order, &bonds, &springs);
     }
 
     /// Stores the particles in `order` (`new[i] = old[order[i]]`), dropping those not named.
@@ -807,15 +807,20 @@ impl Simulation {
         self.laser_snapshot.renumber(order);
     }
 
-    /// The pair data of the rebuilt list, from the bonds and springs held before the rebuild.
-    fn carry_pairs(&mut self, bonds: &HeldPairs<BondState>, springs: &HeldPairs<TangentialSpring>) {
-        let ids = &self.particles.id;
+    /// The pair data of the rebuilt list, from the bonds and springs held before the rebuild
+    /// (keyed by the particles' indices then: `origin[k]` is particle `k`'s).
+    fn carry_pairs(
+        &mut self,
+        origin: &[u32],
+        bonds: &HeldPairs<BondState>,
+        springs: &HeldPairs<TangentialSpring>,
+    ) {
         if self.model.has_bonds() {
-            self.bond_states = self.neighbors.carry(ids, bonds, |state, _| *state);
+            self.bond_states = self.neighbors.carry(origin, bonds, |state, _| *state);
         }
         if self.rotation.is_some() {
             self.tangential =
-                TangentialHistories::carry(&self.neighbors, ids, springs, |t, turned| {
+                TangentialHistories::carry(&self.neighbors, origin, springs, |t, turned| {
                     if turned { t.turned() } else { *t }
                 });
         }
