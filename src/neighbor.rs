@@ -763,9 +763,10 @@ impl NeighborList {
             .filter(|&(p, owner, _)| held(p, owner).is_some())
             .count();
         let index = |k: usize| -> u32 {
-            let k = u32::try_from(k).expect("fewer than 2^32 particles");
-            assert!(u64::from(k) < OWNER_WAS_LOWER, "fewer than 2^31 particles");
-            k
+            u32::try_from(k)
+                .ok()
+                .filter(|&k| u64::from(k) < OWNER_WAS_LOWER)
+                .expect("fewer than 2^31 particles")
         };
         let mut entries: Vec<(u64, T)> = Vec::with_capacity(count);
         entries.extend(self.pairs().filter_map(|(p, owner, partner)| {

@@ -160,24 +160,25 @@ impl Pool {
         u32::try_from(self.held - 1).expect("fewer than 2^32 contacts in a slab")
     }
 
+    /// The ring position just after the last pass's springs: where a pass writes its first.
+    fn after_held(&self) -> usize {
+        if self.ring.is_empty() {
+            0
+        } else {
+            (self.base + self.held) % self.ring.len()
+        }
+    }
+
     /// Starts a pass: the springs the last pass left are all unread.
     fn start_pass(&mut self) {
         self.read_mark = 0;
         self.written = 0;
-        self.write_position = if self.ring.is_empty() {
-            0
-        } else {
-            (self.base + self.held) % self.ring.len()
-        };
+        self.write_position = self.after_held();
     }
 
     /// Ends a pass: the springs it wrote are the ones the next pass reads.
     fn finish_pass(&mut self) {
-        self.base = if self.ring.is_empty() {
-            0
-        } else {
-            (self.base + self.held) % self.ring.len()
-        };
+        self.base = self.after_held();
         self.held = self.written;
         self.read_mark = 0;
         self.written = 0;
@@ -221,7 +222,7 @@ impl TangentialHistories {
             return histories;
         }
         let partners = list.partners();
-        // Per slab: the slots that carry a history and their held entries (8 bytes each, not
+        // Per slab: the slots that carry a history and their held entries (12 bytes each, not
         // the 40 of a copied spring: this is the rebuild's peak), found in parallel; then each
         // pool is allocated at its exact size and filled in slot order.
         let found: Vec<Vec<(u32, u32, bool)>> = (0..list.slab_count())
