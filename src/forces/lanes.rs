@@ -17,7 +17,11 @@
 //!
 //! The laws are those of `contact` (pure functions of the pair's kinematics and parameters); this
 //! module only feeds them. Scenes with bonds use the same code, but the bond law's branches and
-//! `powf` keep the compiler from vectorising it: their lanes run one after the other.
+//! `powf` keep the compiler from vectorising it: a batch with a lane that is bonded or may bond
+//! runs its lanes one after the other. A batch without one (in a powder bed under a laser, nearly
+//! every batch: the bond criterion holds only where both particles melted) runs the build without
+//! the bond law, vectorised, which gives bitwise the same (the normal law goes straight to its
+//! Hertz branch there).
 
 use glam::DVec3;
 
@@ -165,6 +169,16 @@ impl ContactLanes {
             self.held_history.set(i, input.held.history);
             self.held_energy[i] = input.held.spring_energy;
         }
+    }
+
+    /// Whether a lane is bonded or its bond criterion holds: only then can the bond law change
+    /// its force or state (lanes past the batch's count count too, harmlessly).
+    #[inline(always)]
+    fn any_bond_law(&self) -> bool {
+        self.state
+            .iter()
+            .zip(&self.criterion)
+            .any(|(&state, &criterion)| state == BondState::Bonded || criterion)
     }
 
     /// Radii of lane `i`'s two particles \[m\].
@@ -407,7 +421,6 @@ impl InstructionSet {
 
 /// Runs the laws over every lane with the kernel built for `set`.
 #[inline]
-#[allow(unsafe_code)]
 pub(super) fn run<const BONDS: bool, const FRICTION: bool>(
     set: InstructionSet,
     model: &Model,
@@ -416,6 +429,26 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool>(
     // In a vector kernel every lane evaluates the rolling law (a square root and four
     // divisions), even where μ_r = 0; a batch without rolling resistance skips it.
     let rolling = FRICTION && lanes.rolling.iter().any(|&coefficient| coefficient != 0.0);
+    if BONDS && !lanes.any_bond_law() {
+        // No lane is bonded or may bond: `contact::normal_force` would take the Hertz branch
+        // in every lane and keep every state unbonded, which the build without bonds does
+        // with the same operations, vectorised.
+        run_build::<false, FRICTION>(set, model, lanes, rolling);
+        lanes.new_state = [BondState::Unbonded; LANES];
+    } else {
+        run_build::<BONDS, FRICTION>(set, model, lanes, rolling);
+    }
+}
+
+/// [`run`] for one combination, with the rolling law if `rolling`.
+#[inline]
+#[allow(unsafe_code)]
+fn run_build<const BONDS: bool, const FRICTION: bool>(
+    set: InstructionSet,
+    model: &Model,
+    lanes: &mut ContactLanes,
+    rolling: bool,
+) {
     #[cfg(target_arch = "x86_64")]
     if set.avx2 {
         // SAFETY: `avx2` is true only as `detect` found it, on a processor with AVX2.
@@ -495,12 +528,16 @@ mod tests {
                     effective_modulus: PAPER_E_STAR,
                     damping_ratio: 0.2,
                     materials: [0, 0],
-                    state: if k % 3 == 0 {
+                    // Of every three batches, one has bonded lanes (without the criterion),
+                    // one lanes that may bond (the criterion holds) but none bonded, and one
+                    // no lane that is bonded or may bond, which the kernel runs without the
+                    // bond law.
+                    state: if k % 3 == 0 && (k / LANES) % 3 == 0 {
                         BondState::Bonded
                     } else {
                         BondState::Unbonded
                     },
-                    criterion: k % 2 == 0,
+                    criterion: k % 2 == 0 && (k / LANES) % 3 == 2,
                     angular_velocity: [random.vector(300.0), random.vector(300.0)],
                     friction: FrictionParams {
                         effective_shear_modulus: 0.4 * PAPER_E_STAR,
@@ -549,20 +586,31 @@ mod tests {
     fn check<const BONDS: bool, const FRICTION: bool>(model: &Model) {
         let inputs = inputs(16 * LANES);
         let (mut sliding, mut sticking, mut switched, mut rolling) = (0, 0, 0, 0);
+        let mut bond_law = 0;
+        let mut reused = [ContactLanes::default(), ContactLanes::default()];
         for batch in inputs.chunks(LANES) {
             rolling += usize::from(batch.iter().any(|input| input.friction.rolling != 0.0));
+            bond_law += usize::from(
+                batch
+                    .iter()
+                    .any(|input| input.state == BondState::Bonded || input.criterion),
+            );
             let one_by_one: Vec<ContactOutput> = batch
                 .iter()
                 .map(|input| {
                     contact_step::<BONDS, FRICTION, true>(model, std::hint::black_box(input))
                 })
                 .collect();
-            for set in [InstructionSet::baseline(), InstructionSet::detect()] {
-                let mut lanes = ContactLanes::default();
+            // The lanes are reused from batch to batch, as the pair pass does: what one batch
+            // left in them must not leak into the next.
+            for (set, lanes) in [InstructionSet::baseline(), InstructionSet::detect()]
+                .into_iter()
+                .zip(&mut reused)
+            {
                 for (i, input) in batch.iter().enumerate() {
                     lanes.set::<BONDS, FRICTION>(i, input);
                 }
-                run::<BONDS, FRICTION>(set, model, &mut lanes);
+                run::<BONDS, FRICTION>(set, model, lanes);
                 for (i, expected) in one_by_one.iter().enumerate() {
                     assert_eq!(bits(&lanes.output(i)), bits(expected), "{set:?}, lane {i}");
                 }
@@ -595,6 +643,11 @@ mod tests {
         );
         if BONDS {
             assert!(switched > 0, "no bond formed or broke");
+            // Both kernels, with and without the bond law, ran.
+            assert!(
+                bond_law > 0 && bond_law < inputs.len() / LANES,
+                "{bond_law} batches with the bond law"
+            );
         }
     }
 
