@@ -355,6 +355,12 @@ impl Simulation {
         self.time = 0.0;
         self.particles.dissipated.fill(0.0);
         self.apply_initial_regions();
+        // The t = 0 diagnostics report the thermal stiffness of the state the run starts from:
+        // the initial regions have just changed temperatures, and a deposition may have left
+        // the heat model out (`bed::deposition`), so that no force pass has measured it.
+        if let Some(time_constant) = self.smallest_thermal_time_constant() {
+            self.force_summary.max_heat_rate = 1.0 / time_constant;
+        }
         self.mark_start();
     }
 

@@ -150,3 +150,74 @@ fn two_hundred_spheres_settle_into_a_random_packing_on_the_plate() {
     );
     assert!((0.55..0.68).contains(&phi), "solid fraction {phi}");
 }
+
+/// The scene above with `[thermal]`: powder at 300 K, gas and surroundings at 300 K, the plate
+/// held at `plate_k`.
+fn thermal_scene(plate_k: f64) -> String {
+    scene()
+        .replace(
+            "poisson_ratio = 0.3\n",
+            "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 500\nthermal_conductivity_w_m_k = 18\n\
+             melting_point_k = 1700\nlatent_heat_j_kg = 2.7e5\nemissivity = 0.4\n\
+             absorptivity = 0.6\n",
+        )
+        .replacen(
+            "normal = [0.0, 0.0, 1.0]\nmaterial = \"steel\"\n",
+            &format!("normal = [0.0, 0.0, 1.0]\nmaterial = \"steel\"\ntemperature_k = {plate_k}\n"),
+            1,
+        )
+        + "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n\
+           [thermal.radiation]\nenvironment_temperature_k = 300\n\
+           [thermal.convection]\nheat_transfer_coefficient_w_m2_k = 10\ngas_temperature_k = 300\n"
+}
+
+fn settled(text: &str) -> Simulation {
+    let scene = Scene::from_toml(text).expect("scene");
+    let (model, particles) = Model::try_build(&scene).expect("build");
+    let settings = model.deposition.expect("[deposition]");
+    let mut sim = Simulation::new(model, particles);
+    let report = deposition::settle(&mut sim, &settings, |_| {});
+    assert!(report.settled, "{report:?}");
+    sim
+}
+
+/// A bed at the temperature of the plate, the gas and the surroundings exchanges no heat, so the
+/// deposition leaves the heat model out: it settles exactly as without `[thermal]`, takes no
+/// thermal step, leaves every temperature at 300 K bitwise, and hands the heat model back for
+/// the run. With the plate at 400 K heat flows, and the deposition runs the heat model.
+#[test]
+fn a_deposition_runs_the_heat_model_only_where_heat_can_flow() {
+    let mechanical = settled(&scene());
+    let inert = settled(&thermal_scene(300.0));
+    assert!(
+        inert.model.thermal.is_some(),
+        "the heat model is handed back"
+    );
+    assert_eq!(inert.particles.position, mechanical.particles.position);
+    let state = inert.thermal.as_ref().expect("thermal state");
+    assert!(state.temperature.iter().all(|&t| t == 300.0));
+    assert_eq!(state.max_substeps, 0, "no thermal step");
+    // The run's first diagnostics still report the thermal stiffness of the settled bed (dt
+    // over its smallest time constant C_i/G_i, M.49), which no force pass measured.
+    let tau = inert.smallest_thermal_time_constant().expect("[thermal]");
+    let ratio = inert
+        .diagnostics()
+        .thermal
+        .expect("[thermal]")
+        .time_step_ratio;
+    assert!(tau.is_finite() && tau > 0.0);
+    assert!(
+        (ratio / (inert.model.dt / tau) - 1.0).abs() < 1e-12,
+        "{ratio:e} against dt/tau {:e}",
+        inert.model.dt / tau
+    );
+
+    let heated = settled(&thermal_scene(400.0));
+    assert!(heated.model.thermal.is_some());
+    let state = heated.thermal.as_ref().expect("thermal state");
+    let warmest = state.temperature.iter().copied().fold(0.0, f64::max);
+    // The spheres on the plate draw heat from it through their contacts over the ~10 ms of the
+    // deposition; even a microkelvin shows the heat model ran.
+    assert!(warmest > 300.0 + 1e-6, "warmest sphere {warmest} K");
+    assert!(state.max_substeps >= 1);
+}

@@ -18,6 +18,13 @@
 //! nothing is written, and afterwards the step counter, the clock and the dissipated-energy
 //! bookkeeping are reset, so the scene's `duration_s`, the laser's `start_time_s` and the
 //! output's frames all count from the settled bed.
+//!
+//! A bed that is at the temperature of everything it exchanges heat with, none of it melted
+//! ([`ThermalModel::is_inert`](crate::thermal::ThermalModel::is_inert)), would exchange no heat
+//! while the laser is off: the deposition then leaves the heat model out as well (no contact
+//! conductances, boundary exchange or temperature update at each step), and the temperatures
+//! stay exactly as they were. A powder deposited at room temperature settles at the cost of a
+//! scene without `[thermal]`.
 
 use crate::particles::Particles;
 use crate::simulation::{GuardTrip, Simulation};
@@ -104,6 +111,13 @@ pub fn settle(
     let gravity = sim.model.gravity.length();
     let earliest = free_fall_steps(&sim.particles, sim.model.gravity, sim.model.dt);
     let laser = sim.model.laser.take();
+    let inert = sim
+        .model
+        .thermal
+        .as_ref()
+        .zip(sim.thermal.as_ref())
+        .is_some_and(|(model, state)| model.is_inert(state));
+    let heat = sim.model.thermal.take_if(|_| inert);
     let mut report = DepositionReport {
         settled: false,
         steps: 0,
@@ -123,6 +137,7 @@ pub fn settle(
                 report.steps = sim.step;
                 report.time = sim.time;
                 sim.model.laser = laser;
+                sim.model.thermal = sim.model.thermal.take().or(heat);
                 return report;
             }
             if let Some(decay) = decay {
@@ -142,6 +157,7 @@ pub fn settle(
         }
     }
     sim.model.laser = laser;
+    sim.model.thermal = sim.model.thermal.take().or(heat);
     sim.restart_clock();
     report
 }

@@ -150,6 +150,28 @@ impl ThermalModel {
             || self.radiation.is_some()
             || self.wall_temperatures.iter().any(Option::is_some)
     }
+
+    /// Whether no heat can flow in `state` without a laser: every particle solid at one
+    /// temperature T, which every boundary the model exchanges with (held walls, gas,
+    /// surroundings) has too. Every term of the heat balance (M.40-M.47) is then a conductance
+    /// times a difference of equal temperatures, and the temperatures can only move by the
+    /// rounding of `T(E)` (M.48), an ulp of T. A scene whose bed deposits at room temperature is
+    /// in this state until its laser starts.
+    #[must_use]
+    pub fn is_inert(&self, state: &ThermalState) -> bool {
+        let Some(&t) = state.temperature.first() else {
+            return true;
+        };
+        let boundaries = self
+            .wall_temperatures
+            .iter()
+            .flatten()
+            .chain(self.convection.as_ref().map(|(_, t_gas)| t_gas))
+            .chain(self.radiation.as_ref());
+        state.temperature.iter().all(|&t_k| t_k == t)
+            && !state.melted.iter().any(|&m| m)
+            && boundaries.into_iter().all(|&t_b| t_b == t)
+    }
 }
 
 /// Per-particle thermal state (structure of arrays, like `Particles`).
@@ -725,6 +747,54 @@ fn heat_flows(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A bed at 300 K is inert only while every boundary it exchanges with is at 300 K and no
+    /// particle melted; each condition alone breaks it.
+    #[test]
+    fn a_bed_is_inert_only_at_the_temperature_of_all_its_boundaries() {
+        let model = ThermalModel {
+            materials: Vec::new(),
+            conduction: ConductionModel::BatchelorObrien,
+            convection: Some((10.0, 300.0)),
+            radiation: Some(300.0),
+            wall_temperatures: vec![None, Some(300.0)],
+            initial_temperature: 300.0,
+            initial_regions: Vec::new(),
+            substep_fraction: 0.5,
+            harmonic_conductivities: Vec::new(),
+        };
+        let state = ThermalState {
+            temperature: vec![300.0; 4],
+            melted: vec![false; 4],
+            ..ThermalState::default()
+        };
+        assert!(model.is_inert(&state));
+        let warmer = |change: &dyn Fn(&mut ThermalModel)| {
+            let mut other = model.clone();
+            change(&mut other);
+            other
+        };
+        for other in [
+            warmer(&|m| m.convection = Some((10.0, 301.0))),
+            warmer(&|m| m.radiation = Some(301.0)),
+            warmer(&|m| m.wall_temperatures[0] = Some(301.0)),
+        ] {
+            assert!(!other.is_inert(&state), "{other:?}");
+        }
+        // An adiabatic wall and no gas or surroundings exchange nothing.
+        let closed = warmer(&|m| {
+            m.convection = None;
+            m.radiation = None;
+            m.wall_temperatures = vec![None];
+        });
+        assert!(closed.is_inert(&state));
+        let mut uneven = state.clone();
+        uneven.temperature[3] = 300.0 + 1e-9;
+        assert!(!model.is_inert(&uneven));
+        let mut melted = state.clone();
+        melted.melted[0] = true;
+        assert!(!model.is_inert(&melted));
+    }
 
     #[test]
     fn enthalpy_and_temperature_are_inverse_outside_the_plateau() {
