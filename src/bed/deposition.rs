@@ -20,14 +20,15 @@
 //! output's frames all count from the settled bed.
 //!
 //! A bed that is at the temperature of everything it exchanges heat with, none of it melted
-//! ([`ThermalModel::is_inert`](crate::thermal::ThermalModel::is_inert)), would exchange no heat
-//! while the laser is off: the deposition then leaves the heat model out as well (no contact
-//! conductances, boundary exchange or temperature update at each step), and the temperatures
-//! stay exactly as they were. A powder deposited at room temperature settles at the cost of a
-//! scene without `[thermal]`.
+//! ([`ThermalModel::is_inert`]), would exchange no heat while the laser is off: the deposition
+//! then leaves the heat model out as well (no contact conductances, boundary exchange or
+//! temperature update at each step), and the temperatures stay exactly as they were. A powder
+//! deposited at room temperature settles at the cost of a scene without `[thermal]`.
 
+use crate::laser::Laser;
 use crate::particles::Particles;
 use crate::simulation::{GuardTrip, Simulation};
+use crate::thermal::ThermalModel;
 
 /// Resolved `[deposition]` settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -136,8 +137,7 @@ pub fn settle(
                 report.stopped = Some(trip);
                 report.steps = sim.step;
                 report.time = sim.time;
-                sim.model.laser = laser;
-                sim.model.thermal = sim.model.thermal.take().or(heat);
+                hand_back(sim, laser, heat);
                 return report;
             }
             if let Some(decay) = decay {
@@ -156,8 +156,16 @@ pub fn settle(
             break;
         }
     }
-    sim.model.laser = laser;
-    sim.model.thermal = sim.model.thermal.take().or(heat);
+    hand_back(sim, laser, heat);
     sim.restart_clock();
     report
+}
+
+/// Puts back into the model what the deposition took out of it: the laser, and the heat model
+/// if the bed was inert.
+fn hand_back(sim: &mut Simulation, laser: Option<Laser>, heat: Option<ThermalModel>) {
+    sim.model.laser = laser;
+    if heat.is_some() {
+        sim.model.thermal = heat;
+    }
 }

@@ -162,7 +162,7 @@ impl ThermalModel {
         let Some(&t) = state.temperature.first() else {
             return true;
         };
-        let boundaries = self
+        let mut boundaries = self
             .wall_temperatures
             .iter()
             .flatten()
@@ -170,7 +170,7 @@ impl ThermalModel {
             .chain(self.radiation.as_ref());
         state.temperature.iter().all(|&t_k| t_k == t)
             && !state.melted.iter().any(|&m| m)
-            && boundaries.into_iter().all(|&t_b| t_b == t)
+            && boundaries.all(|&t_b| t_b == t)
     }
 }
 
