@@ -358,8 +358,20 @@ impl Simulation {
         // The t = 0 diagnostics report the thermal stiffness of the state the run starts from:
         // the initial regions have just changed temperatures, and a deposition may have left
         // the heat model out (`bed::deposition`), so that no force pass has measured it.
-        if let Some(time_constant) = self.smallest_thermal_time_constant() {
-            self.force_summary.max_heat_rate = 1.0 / time_constant;
+        if let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) {
+            // Measured in the run's own scratch arrays, not a copy of the whole thermal state
+            // (about 100 B per particle at once): every step refills the heat flows before it
+            // reads them, and only a step of several substeps keeps per-slot conductances,
+            // computing them anew.
+            self.force_summary.max_heat_rate = thermal::max_stiffness(
+                model,
+                &self.model.walls,
+                self.model.periodic.as_ref(),
+                &self.particles,
+                &self.neighbors,
+                state,
+            );
+            state.conductance = Vec::new();
         }
         self.mark_start();
     }
