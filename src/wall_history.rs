@@ -60,6 +60,25 @@ impl Chunk {
         }
     }
 
+    /// Whether particle `k` held a spring against some wall at the last pass. Within a pass,
+    /// calls come in ascending particle order, as for [`Chunk::take`] (which may follow for
+    /// the same particle).
+    #[inline]
+    #[must_use]
+    pub fn holds_any(&mut self, k: usize) -> bool {
+        let particle = index(k);
+        while self
+            .held
+            .get(self.cursor)
+            .is_some_and(|e| e.particle < particle)
+        {
+            self.cursor += 1;
+        }
+        self.held
+            .get(self.cursor)
+            .is_some_and(|e| e.particle == particle)
+    }
+
     /// Records the spring of (`k`, `w`) after this pass; a zero spring is not stored.
     #[inline]
     pub fn keep(&mut self, k: usize, w: usize, spring: TangentialSpring) {
@@ -234,6 +253,8 @@ mod tests {
         for (c, chunk) in chunks.iter_mut().enumerate() {
             let first = c * PARTICLES_PER_CHUNK;
             for k in first..(first + PARTICLES_PER_CHUNK).min(n) {
+                // Asked before the particle's springs are taken, as the particle pass does.
+                assert_eq!(chunk.holds_any(k), k == 7 || k == 2000, "particle {k}");
                 for w in 0..2 {
                     let held = chunk.take(k, w);
                     if held != TangentialSpring::default() {
