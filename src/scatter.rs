@@ -111,12 +111,18 @@ pub struct OwnSlab<'w> {
     thread: ThreadBound,
 }
 
-/// One entry of a slab's near list, in 4 bytes (the near lists are about 2.7 entries per
-/// particle on a packed bed): the owner's place among the slab's members (the high 24 bits) and
-/// the slot's place among the owner's slots (the low 8). Only [`SlabVisit::record_near`] makes
-/// one, from a visit's own tokens.
+/// One entry of a slab's near list, in 8 bytes (the near lists are about 2.7 entries per
+/// particle on a packed bed): the owner's place among the slab's members (the high 24 bits of
+/// `place`), the slot's place among the owner's slots (the low 8), and the slot's partner. The
+/// partner is stored because the pass's sift waits on its position: read through the slot
+/// (the owner's first slot, then the partner), that took a chain of three dependent loads
+/// after the entry's; with the partner at hand it takes one. Only [`SlabVisit::record_near`]
+/// makes one, from a visit's own tokens.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct NearPair(u32);
+pub struct NearPair {
+    place: u32,
+    partner: u32,
+}
 
 /// A slab's near list as recorded: its entries, and whether it holds every near slot (a slot
 /// whose place does not fit a [`NearPair`], past 2^24 members or 256 slots of one owner, is
@@ -255,9 +261,10 @@ impl<'a> SlabVisit<'a> {
             let place = slot.index - window.slots.start;
             let mut list = list.borrow_mut();
             if window.ordinal < 1 << 24 && place < 1 << 8 {
-                list.pairs.push(NearPair(
-                    window.ordinal << 8 | u32::try_from(place).expect("< 256"),
-                ));
+                list.pairs.push(NearPair {
+                    place: window.ordinal << 8 | u32::try_from(place).expect("< 256"),
+                    partner: window.partners[place],
+                });
             } else {
                 list.complete = false;
             }
@@ -295,7 +302,7 @@ impl<'a> SlabVisit<'a> {
             _ => None,
         };
         list[range].iter().map(move |pair| {
-            let ordinal = pair.0 >> 8;
+            let ordinal = pair.place >> 8;
             let owner = match consecutive {
                 Some(first) => {
                     debug_assert!((ordinal as usize) < self.members.len());
@@ -303,11 +310,11 @@ impl<'a> SlabVisit<'a> {
                 }
                 None => self.members[ordinal as usize] as usize,
             };
-            let slot = self.offsets[owner] as usize + (pair.0 & 0xff) as usize;
-            let partner = self.partners[slot];
+            let slot = self.offsets[owner] as usize + (pair.place & 0xff) as usize;
+            let partner = pair.partner;
             debug_assert!(
-                slot < self.offsets[owner + 1] as usize,
-                "near pair {pair:?}: not a slot of owner {owner}"
+                slot < self.offsets[owner + 1] as usize && self.partners[slot] == partner,
+                "near pair {pair:?}: not a slot of owner {owner} with that partner"
             );
             debug_assert!(
                 self.slab_of
