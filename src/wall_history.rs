@@ -46,11 +46,7 @@ impl Chunk {
     #[must_use]
     pub fn take(&mut self, k: usize, w: usize) -> TangentialSpring {
         let key = (index(k), index(w));
-        // Entries before the key belong to pairs the pass has gone by; the visit order makes
-        // this at most one step per entry over the whole pass.
-        while self.held.get(self.cursor).is_some_and(|e| e.key() < key) {
-            self.cursor += 1;
-        }
+        self.pass_before(key);
         match self.held.get(self.cursor) {
             Some(e) if e.key() == key => {
                 self.cursor += 1;
@@ -67,16 +63,19 @@ impl Chunk {
     #[must_use]
     pub fn holds_any(&mut self, k: usize) -> bool {
         let particle = index(k);
-        while self
-            .held
-            .get(self.cursor)
-            .is_some_and(|e| e.particle < particle)
-        {
-            self.cursor += 1;
-        }
+        self.pass_before((particle, 0));
         self.held
             .get(self.cursor)
             .is_some_and(|e| e.particle == particle)
+    }
+
+    /// Moves the cursor past the entries before `key`: they belong to pairs the pass has gone
+    /// by, and the visit order makes this at most one step per entry over the whole pass.
+    #[inline]
+    fn pass_before(&mut self, key: (u32, u32)) {
+        while self.held.get(self.cursor).is_some_and(|e| e.key() < key) {
+            self.cursor += 1;
+        }
     }
 
     /// Records the spring of (`k`, `w`) after this pass; a zero spring is not stored.

@@ -958,6 +958,18 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
         boundary_flow: Scatter::new(h.boundary_flow),
         total_conductance: Scatter::new(h.total_conductance),
     });
+    // Adds a particle's own force to what its pairs gave it, and notes the lowest particle
+    // whose total is not finite (a chunk's particles come in ascending order: its first).
+    let add_force = |summary: &mut ForceSummary, particle: Member<'_>, force: DVec3| {
+        let mut total = DVec3::ZERO;
+        force_out.update(particle, |f| {
+            *f += force;
+            total = *f;
+        });
+        if !total.is_finite() && summary.non_finite_force.is_none() {
+            summary.non_finite_force = Some(particle.index());
+        }
+    };
     let visit = |summary: &mut ForceSummary,
                  springs: &mut Option<&mut Chunk>,
                  window: &Window<'_>| {
@@ -981,14 +993,7 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
                 .as_deref_mut()
                 .is_some_and(|chunk| chunk.holds_any(k))
         {
-            let mut total = DVec3::ZERO;
-            force_out.update(particle, |f| {
-                *f += gravity;
-                total = *f;
-            });
-            if !total.is_finite() && summary.non_finite_force.is_none() {
-                summary.non_finite_force = Some(k);
-            }
+            add_force(summary, particle, gravity);
             return;
         }
         let mut max_overlap: f64 = 0.0;
@@ -1050,11 +1055,7 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
                 chunk.keep(k, w, step.spring);
             }
         }
-        let mut total = DVec3::ZERO;
-        force_out.update(particle, |f| {
-            *f += force;
-            total = *f;
-        });
+        add_force(summary, particle, force);
         lost_out.update(particle, |l| *l += lost);
         if let Some(t) = torque {
             t.update(particle, |t| *t += torque_k);
@@ -1078,10 +1079,6 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
             h.total_conductance.read(particle) / h.heat_capacity[k]
         });
         summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
-        // The chunk's particles come in ascending order: the first is the lowest.
-        if !total.is_finite() && summary.non_finite_force.is_none() {
-            summary.non_finite_force = Some(k);
-        }
         summary.observe_overlap(max_overlap / state.radius[k], k);
     };
     let summary = scatter::for_each_particle(
