@@ -434,7 +434,7 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
             owner,
             partner,
             slot,
-            minimum_image,
+            separation,
         };
         count = keep(
             &mut batch.kept,
@@ -499,8 +499,9 @@ struct KeptSlot<'s> {
     owner: Member<'s>,
     partner: Member<'s>,
     slot: Slot<'s>,
-    /// The owner's separations need the minimum image ([`Window::needs_minimum_image`]).
-    minimum_image: bool,
+    /// x_b − x_a \[m\], as the sift found it (its minimum image where the owner needs one):
+    /// handling the slot does not load the two positions again.
+    separation: DVec3,
 }
 
 /// Owners' kept slots gathered before they are handled. Handling many owners' slots in one loop,
@@ -715,7 +716,6 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
         x_a,
         r_a,
         near_skin,
-        minimum_image,
     };
     batch.kept_count = match model.periodic.as_ref().filter(|_| minimum_image) {
         Some(periodic) => slots.sift(particles, &mut batch.kept, kept, |separation| {
@@ -734,7 +734,6 @@ struct SiftedWindow<'w, 's, 't> {
     x_a: DVec3,
     r_a: f64,
     near_skin: f64,
-    minimum_image: bool,
 }
 
 impl<'s> SiftedWindow<'_, 's, '_> {
@@ -760,7 +759,7 @@ impl<'s> SiftedWindow<'_, 's, '_> {
                 owner,
                 partner,
                 slot,
-                minimum_image: self.minimum_image,
+                separation,
             };
             count = keep(
                 kept,
@@ -824,11 +823,9 @@ fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             owner,
             partner,
             slot: p,
-            minimum_image,
+            separation,
         } = batch.kept[k].expect("the sift writes every entry it keeps");
         let (a, b) = (owner.index(), partner.index());
-        let periodic = model.periodic.as_ref().filter(|_| minimum_image);
-        let separation = pair_separation(periodic, particles, a, b);
         let (r_a, r_b) = (particles.radius[a], particles.radius[b]);
         let reach = r_a + r_b;
         if separation.length_squared() >= reach * reach {
