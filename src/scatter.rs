@@ -72,7 +72,8 @@ pub struct Window<'a> {
 /// A particle the visit may read and write: its owner, or the partner of one of its slots.
 #[derive(Debug, Clone, Copy)]
 pub struct Member<'w> {
-    index: usize,
+    /// (Particle counts fit in `u32`, as the list's partners do: a kept contact is smaller.)
+    index: u32,
     window: PhantomData<&'w ()>,
     thread: ThreadBound,
 }
@@ -82,14 +83,15 @@ impl Member<'_> {
     #[must_use]
     #[inline]
     pub fn index(self) -> usize {
-        self.index
+        self.index as usize
     }
 }
 
 /// One of the visit's pair slots.
 #[derive(Debug, Clone, Copy)]
 pub struct Slot<'w> {
-    index: usize,
+    /// (Slot counts fit in `u32`, as the list's offsets do.)
+    index: u32,
     window: PhantomData<&'w ()>,
     thread: ThreadBound,
 }
@@ -99,7 +101,7 @@ impl Slot<'_> {
     #[must_use]
     #[inline]
     pub fn index(self) -> usize {
-        self.index
+        self.index as usize
     }
 }
 
@@ -256,9 +258,12 @@ impl<'a> SlabVisit<'a> {
     /// list being recorded; does nothing unless the visit records one.
     #[inline]
     pub fn record_near(&self, window: &Window<'a>, slot: Slot<'a>) {
-        debug_assert!(window.slots.contains(&slot.index), "slot of another window");
+        debug_assert!(
+            window.slots.contains(&slot.index()),
+            "slot of another window"
+        );
         if let NearVisit::Record(list) = &self.near {
-            let place = slot.index - window.slots.start;
+            let place = slot.index() - window.slots.start;
             let mut list = list.borrow_mut();
             if window.ordinal < 1 << 24 && place < 1 << 8 {
                 list.pairs.push(NearPair {
@@ -324,17 +329,17 @@ impl<'a> SlabVisit<'a> {
             );
             NearTokens {
                 owner: Member {
-                    index: owner,
+                    index: owner as u32,
                     window: PhantomData,
                     thread: PhantomData,
                 },
                 slot: Slot {
-                    index: slot,
+                    index: slot as u32,
                     window: PhantomData,
                     thread: PhantomData,
                 },
                 partner: Member {
-                    index: partner as usize,
+                    index: partner,
                     window: PhantomData,
                     thread: PhantomData,
                 },
@@ -381,7 +386,8 @@ impl<'a> Window<'a> {
     /// The window of a per-particle visit: particle `k` alone, no slot.
     ///
     /// # Safety
-    /// While the window lives no other thread holds a window that reaches particle `k`.
+    /// While the window lives no other thread holds a window that reaches particle `k`, and
+    /// `k` fits in `u32` (its token holds it so).
     #[must_use]
     pub unsafe fn particle(k: usize) -> Self {
         Self {
@@ -401,7 +407,7 @@ impl<'a> Window<'a> {
     #[inline]
     pub fn owner(&self) -> Member<'a> {
         Member {
-            index: self.owner,
+            index: self.owner as u32,
             window: PhantomData,
             thread: PhantomData,
         }
@@ -460,12 +466,12 @@ impl<'a> Window<'a> {
         );
         (
             Slot {
-                index: self.slots.start + i,
+                index: (self.slots.start + i) as u32,
                 window: PhantomData,
                 thread: PhantomData,
             },
             Member {
-                index: b as usize,
+                index: b,
                 window: PhantomData,
                 thread: PhantomData,
             },
@@ -527,7 +533,7 @@ impl<T> Scatter<'_, T, PerParticle> {
     /// Changes particle `k`'s element.
     #[inline]
     pub fn update(&self, k: Member<'_>, change: impl FnOnce(&mut T)) {
-        let element = self.element(k.index);
+        let element = self.element(k.index());
         // SAFETY: k is a member of a live window on this thread, and no concurrent window
         // reaches it (`Window`'s contract).
         change(unsafe { &mut *element });
@@ -540,7 +546,7 @@ impl<T> Scatter<'_, T, PerParticle> {
     where
         T: Copy,
     {
-        let element = self.element(k.index);
+        let element = self.element(k.index());
         // SAFETY: as in `update`.
         unsafe { *element }
     }
@@ -550,7 +556,7 @@ impl<T> Scatter<'_, T, PerSlot> {
     /// Changes slot `p`'s element.
     #[inline]
     pub fn update(&self, p: Slot<'_>, change: impl FnOnce(&mut T)) {
-        let element = self.element(p.index);
+        let element = self.element(p.index());
         // SAFETY: p is a slot of a live window on this thread, and no concurrent window holds it
         // (`Window`'s contract).
         change(unsafe { &mut *element });
@@ -563,7 +569,7 @@ impl<T> Scatter<'_, T, PerSlot> {
     where
         T: Copy,
     {
-        let element = self.element(p.index);
+        let element = self.element(p.index());
         // SAFETY: as in `update`.
         unsafe { *element }
     }
@@ -592,7 +598,7 @@ impl<T> Scatter<'_, T, PerSlab> {
 /// in [`crate::neighbor::NeighborList::for_each_owner`].
 ///
 /// # Panics
-/// If `states` does not hold one state per chunk.
+/// If `states` does not hold one state per chunk, or with 2^32 particles or more.
 pub fn for_each_particle<S, R, V, M>(
     count: usize,
     chunk_len: usize,
@@ -613,6 +619,10 @@ where
         states.len(),
         count.div_ceil(chunk_len),
         "one state per chunk"
+    );
+    assert!(
+        u32::try_from(count).is_ok(),
+        "{count} particles: a particle's token holds its index in 32 bits"
     );
     let chunk = |(c, state): (usize, &mut S)| {
         let mut partial = identity.clone();
