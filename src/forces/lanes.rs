@@ -135,10 +135,90 @@ pub(super) struct ContactLanes {
     torque_on_b: Lane3,
     spring_history: Lane3,
     spring_energy: Lane<f64>,
+    /// Every lane holds the same material parameters, put there by [`Self::for_model`]: the
+    /// model has one material. [`Self::set`] then leaves them.
+    uniform_material: bool,
+}
+
+/// The parameters of a scene without friction or rolling resistance.
+const NO_FRICTION: FrictionParams = FrictionParams {
+    effective_shear_modulus: 0.0,
+    sliding: 0.0,
+    rolling: 0.0,
+};
+
+/// What the laws need of a material pair: the normal law's parameters (without the bond's, which
+/// the kernel looks up by the materials) and, with friction, the tangential and rolling ones.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct PairMaterial {
+    pub materials: [u16; 2],
+    pub effective_modulus: f64,
+    pub damping_ratio: f64,
+    pub friction: FrictionParams,
+}
+
+impl PairMaterial {
+    /// The parameters of materials `a` and `b` in `model` (zero friction without friction).
+    #[inline(always)]
+    pub(super) fn of(model: &Model, a: u16, b: u16) -> Self {
+        let params = model.pair_params(a, b);
+        Self {
+            materials: [a, b],
+            effective_modulus: params.effective_modulus,
+            damping_ratio: params.damping_ratio,
+            friction: model
+                .friction
+                .as_ref()
+                .map_or(NO_FRICTION, |tables| *tables.pair(a, b)),
+        }
+    }
 }
 
 impl ContactLanes {
-    /// Puts `input` into lane `i`; what the combination leaves out is not stored.
+    /// Empty lanes for the contacts of `model`. With one material, every pair has the same
+    /// parameters: the lanes take them here, once, instead of one contact at a time (five
+    /// stores per contact and the two materials' loads fewer).
+    pub(super) fn for_model(model: &Model) -> Self {
+        let mut lanes = Self::default();
+        if model.materials.len() == 1 {
+            let material = PairMaterial::of(model, 0, 0);
+            for i in 0..LANES {
+                lanes.set_material(i, &material);
+            }
+            lanes.uniform_material = true;
+        }
+        lanes
+    }
+
+    /// The parameters every lane holds, if the model has one material.
+    #[inline(always)]
+    pub(super) fn uniform_material(&self) -> Option<PairMaterial> {
+        self.uniform_material.then(|| PairMaterial {
+            materials: [self.materials[0][0], self.materials[1][0]],
+            effective_modulus: self.effective_modulus[0],
+            damping_ratio: self.damping_ratio[0],
+            friction: FrictionParams {
+                effective_shear_modulus: self.shear_modulus[0],
+                sliding: self.sliding[0],
+                rolling: self.rolling[0],
+            },
+        })
+    }
+
+    /// Puts a material pair's parameters into lane `i`.
+    #[inline(always)]
+    fn set_material(&mut self, i: usize, material: &PairMaterial) {
+        self.effective_modulus[i] = material.effective_modulus;
+        self.damping_ratio[i] = material.damping_ratio;
+        self.materials[0][i] = material.materials[0];
+        self.materials[1][i] = material.materials[1];
+        self.shear_modulus[i] = material.friction.effective_shear_modulus;
+        self.sliding[i] = material.friction.sliding;
+        self.rolling[i] = material.friction.rolling;
+    }
+
+    /// Puts `input` into lane `i`; what the combination leaves out is not stored, nor are the
+    /// material parameters where every lane holds the same (`input` must then carry those).
     #[inline(always)]
     pub(super) fn set<const BONDS: bool, const FRICTION: bool>(
         &mut self,
@@ -151,11 +231,20 @@ impl ContactLanes {
             self.mass[end][i] = input.mass[end];
             self.velocity[end].set(i, input.velocity[end]);
         }
-        self.effective_modulus[i] = input.effective_modulus;
-        self.damping_ratio[i] = input.damping_ratio;
+        if !self.uniform_material {
+            self.effective_modulus[i] = input.effective_modulus;
+            self.damping_ratio[i] = input.damping_ratio;
+            if BONDS {
+                self.materials[0][i] = input.materials[0];
+                self.materials[1][i] = input.materials[1];
+            }
+            if FRICTION {
+                self.shear_modulus[i] = input.friction.effective_shear_modulus;
+                self.sliding[i] = input.friction.sliding;
+                self.rolling[i] = input.friction.rolling;
+            }
+        }
         if BONDS {
-            self.materials[0][i] = input.materials[0];
-            self.materials[1][i] = input.materials[1];
             self.state[i] = input.state;
             self.criterion[i] = input.criterion;
         }
@@ -163,9 +252,6 @@ impl ContactLanes {
             for end in 0..2 {
                 self.angular_velocity[end].set(i, input.angular_velocity[end]);
             }
-            self.shear_modulus[i] = input.friction.effective_shear_modulus;
-            self.sliding[i] = input.friction.sliding;
-            self.rolling[i] = input.friction.rolling;
             self.held_history.set(i, input.held.history);
             self.held_energy[i] = input.held.spring_energy;
         }
@@ -580,6 +666,52 @@ mod tests {
             .chain(scalars)
             .map(f64::to_bits)
             .collect()
+    }
+
+    /// With one material, the lanes take its parameters once and [`ContactLanes::set`] leaves
+    /// them: the kernel then gives bitwise what lanes filled contact by contact give. With two
+    /// materials, the lanes hold none in advance.
+    #[test]
+    fn lanes_of_a_one_material_model_hold_its_parameters() {
+        let text = two_spheres_text(8000.0, 2.0 * PAPER_RADIUS, 0.1, 0.2, None, 1e-7, 1e-6)
+            .replace(
+                "model = \"hertz\"",
+                "model = \"hertz\"\nfriction_coefficient = 0.5\nrolling_friction_coefficient = 0.1",
+            );
+        let model = Model::build(&Scene::from_toml(&text).expect("the test's scene")).0;
+        let material = PairMaterial::of(&model, 0, 0);
+        assert_eq!(
+            (material.friction.sliding, material.friction.rolling),
+            (0.5, 0.1)
+        );
+        let mut uniform = ContactLanes::for_model(&model);
+        assert!(uniform.uniform_material().is_some());
+        let mut per_contact = ContactLanes::default();
+        for (i, mut input) in inputs(LANES).into_iter().enumerate() {
+            input.effective_modulus = material.effective_modulus;
+            input.damping_ratio = material.damping_ratio;
+            input.materials = material.materials;
+            input.friction = material.friction;
+            per_contact.set::<false, true>(i, &input);
+            uniform.set::<false, true>(i, &input);
+        }
+        let set = InstructionSet::detect();
+        run::<false, true>(set, &model, &mut per_contact);
+        run::<false, true>(set, &model, &mut uniform);
+        for i in 0..LANES {
+            assert_eq!(
+                bits(&uniform.output(i)),
+                bits(&per_contact.output(i)),
+                "lane {i}"
+            );
+        }
+        let two = text.replace(
+            "[contact]",
+            "[materials.other]\ndensity_kg_m3 = 5000.0\nyoungs_modulus_pa = 3e9\npoisson_ratio = 0.2\n[contact]",
+        );
+        let model = Model::build(&Scene::from_toml(&two).expect("the test's scene")).0;
+        assert_eq!(model.materials.len(), 2);
+        assert!(ContactLanes::for_model(&model).uniform_material().is_none());
     }
 
     /// Every build of the kernel gives bitwise what the laws give one contact at a time.

@@ -32,7 +32,7 @@ use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
 
 mod lanes;
 
-use lanes::{ContactInput, ContactLanes, InstructionSet, LANES};
+use lanes::{ContactInput, ContactLanes, InstructionSet, LANES, PairMaterial};
 
 /// `x_b − x_a` \[m\], as its minimum image across periodic axes (M.77).
 #[inline(always)]
@@ -361,7 +361,7 @@ fn pair_pass<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         refresh_near,
         ForceSummary::default(),
         |summary, slab| {
-            let mut batch = Batch::new(slab);
+            let mut batch = Batch::new(model, slab);
             if slab.records_near() {
                 for window in slab.windows() {
                     sift::<BONDS, FRICTION>(
@@ -538,12 +538,12 @@ fn recycle<T, U>(mut empty: Vec<T>) -> Vec<U> {
 }
 
 impl<'s> Batch<'s> {
-    /// A batch for the visit of `slab`, with this thread's buffers.
-    fn new(slab: &'s SlabVisit<'s>) -> Self {
+    /// A batch for the visit of `slab` with `model`'s contacts, with this thread's buffers.
+    fn new(model: &Model, slab: &'s SlabVisit<'s>) -> Self {
         let buffers = BATCH_BUFFERS.with_borrow_mut(std::mem::take);
         Self {
             slab,
-            lanes: ContactLanes::default(),
+            lanes: ContactLanes::for_model(model),
             filled: 0,
             events: recycle(buffers.events),
             owner: None,
@@ -815,9 +815,9 @@ fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     let states = targets.states.as_ref().filter(|_| BONDS);
     let histories = targets.tangential.as_ref().filter(|_| FRICTION);
     let omega = omega.filter(|_| FRICTION);
-    let friction_tables = model.friction.as_ref().filter(|_| FRICTION);
     let heat = targets.heat.as_ref().filter(|_| HEAT);
     let own_slab = batch.slab.own_slab();
+    let uniform = batch.lanes.uniform_material();
     for k in 0..batch.kept_count {
         let KeptSlot {
             owner,
@@ -855,37 +855,27 @@ fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                 .is_none_or(|p| p.minimum_image(separation) == separation),
             "a touching pair of owner {a} across a periodic face, which the list did not flag"
         );
-        let (material_a, material_b) = (particles.material[a], particles.material[b]);
-        let params = model.pair_params(material_a, material_b);
+        // Loop-invariant with one material: then no material is loaded.
+        let material = uniform.unwrap_or_else(|| {
+            PairMaterial::of(model, particles.material[a], particles.material[b])
+        });
         let melted = heat.map_or((false, false), |h| (h.melted[a], h.melted[b]));
-        let (angular_velocity, friction, held) = match (histories, omega, friction_tables) {
-            (Some(histories), Some(omega), Some(tables)) => (
-                [omega[a], omega[b]],
-                *tables.pair(material_a, material_b),
-                histories.read(own_slab, p),
-            ),
-            _ => (
-                [DVec3::ZERO; 2],
-                FrictionParams {
-                    effective_shear_modulus: 0.0,
-                    sliding: 0.0,
-                    rolling: 0.0,
-                },
-                TangentialSpring::default(),
-            ),
+        let (angular_velocity, held) = match (histories, omega) {
+            (Some(histories), Some(omega)) => ([omega[a], omega[b]], histories.read(own_slab, p)),
+            _ => ([DVec3::ZERO; 2], TangentialSpring::default()),
         };
         let input = ContactInput {
             separation,
             radius: [r_a, r_b],
             mass: [particles.mass[a], particles.mass[b]],
             velocity: [particles.velocity[a], particles.velocity[b]],
-            effective_modulus: params.effective_modulus,
-            damping_ratio: params.damping_ratio,
-            materials: [material_a, material_b],
+            effective_modulus: material.effective_modulus,
+            damping_ratio: material.damping_ratio,
+            materials: material.materials,
             state: states.map_or(BondState::Unbonded, |states| states.read(p)),
             criterion: model.bond_criterion.holds(melted.0, melted.1),
             angular_velocity,
-            friction,
+            friction: material.friction,
             held,
         };
         batch.lanes.set::<BONDS, FRICTION>(batch.filled, &input);
