@@ -11,7 +11,6 @@
 //! its energy to O(dt²) (tested in `tests/hertz_impact.rs`).
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use crate::contact::rolling;
 use crate::particles::{Particles, Rotation};
@@ -167,11 +166,13 @@ fn each_chunk<T: Send>(
 ) -> (bool, f64) {
     let merge = |(a, x): (bool, f64), (b, y): (bool, f64)| (a || b, x.max(y));
     if parallel {
-        chunks
-            .into_par_iter()
-            .enumerate()
-            .map(|(c, chunk)| visit(c * CHUNK, chunk))
-            .reduce(|| (false, 0.0), merge)
+        // The members of the thread team take the same share of the chunks at every pass.
+        crate::team::Team::current().fold_items(
+            chunks,
+            || (false, 0.0),
+            |any, c, chunk| merge(any, visit(c * CHUNK, chunk)),
+            merge,
+        )
     } else {
         chunks
             .into_iter()

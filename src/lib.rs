@@ -30,12 +30,13 @@ pub mod scatter;
 pub mod scene;
 pub mod simulation;
 pub mod study;
+pub mod team;
 pub mod thermal;
 pub mod wall_history;
 
 /// Below this many items a pass runs on the calling thread: handing a few hundred items to the
-/// rayon pool costs more (a wake-up and a wait, tens of µs) than computing them. Results are the
-/// same either way, since every item is computed independently.
+/// thread team or the rayon pool costs more (a wake-up and a wait, up to tens of µs) than
+/// computing them. Results are the same either way, since every item is computed independently.
 pub const MIN_PARALLEL_ITEMS: usize = 1024;
 
 /// Whether a pass over `items` items is worth running in parallel.

@@ -614,7 +614,6 @@ where
     V: Fn(&mut R, &mut S, &Window<'_>) + Sync,
     M: Fn(R, R) -> R + Sync + Send,
 {
-    use rayon::prelude::*;
     assert_eq!(
         states.len(),
         count.div_ceil(chunk_len),
@@ -624,8 +623,8 @@ where
         u32::try_from(count).is_ok(),
         "{count} particles: a particle's token holds its index in 32 bits"
     );
-    let chunk = |(c, state): (usize, &mut S)| {
-        let mut partial = identity.clone();
+    // A chunk's particles add into the partial they are given.
+    let chunk = |mut partial: R, c: usize, state: &mut S| {
         for k in c * chunk_len..((c + 1) * chunk_len).min(count) {
             // SAFETY: every particle is visited exactly once.
             let window = unsafe { Window::particle(k) };
@@ -634,17 +633,20 @@ where
         partial
     };
     if parallel {
-        states
-            .par_iter_mut()
-            .enumerate()
-            .map(chunk)
-            .reduce(|| identity.clone(), &merge)
+        // The members of the thread team take the same share of the chunks at every pass.
+        crate::team::Team::current().fold_items(
+            states.iter_mut().collect(),
+            || identity.clone(),
+            chunk,
+            &merge,
+        )
     } else {
         states
             .iter_mut()
             .enumerate()
-            .map(chunk)
-            .fold(identity.clone(), &merge)
+            .fold(identity.clone(), |partial, (c, state)| {
+                chunk(partial, c, state)
+            })
     }
 }
 

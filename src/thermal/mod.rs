@@ -32,6 +32,7 @@ use rayon::prelude::*;
 use crate::model::Wall;
 use crate::neighbor::NeighborList;
 use crate::particles::Particles;
+use crate::team::Team;
 
 /// Thermal data of one material (SI).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -494,11 +495,17 @@ pub fn max_stiffness(
     heat_flows(model, walls, particles, list, state)
 }
 
-/// One particle's slots written by the enthalpy update: ((enthalpy, temperature), melted) and
-/// (laser energy, boundary energy).
-type OwnSlots<'a> = (
-    ((&'a mut f64, &'a mut f64), &'a mut bool),
-    (&'a mut f64, &'a mut f64),
+/// Particles per chunk of the temperature update.
+const CHUNK: usize = 1024;
+
+/// A chunk's laser and boundary energy accumulators, kept with a laser or boundary exchange.
+type Accumulators<'a> = Option<(&'a mut [f64], &'a mut [f64])>;
+
+/// A chunk of the temperature update: enthalpies, temperatures and melted flags, and its
+/// accumulators.
+type Chunk<'a> = (
+    ((&'a mut [f64], &'a mut [f64]), &'a mut [bool]),
+    Accumulators<'a>,
 );
 
 /// What [`advance`] needs to know about the step besides the state.
@@ -578,49 +585,41 @@ pub fn advance(
         // The energy accumulators cost two more streams; a scene without laser and boundary
         // exchange does not pay for them (its laser and boundary powers are zero anyway).
         let accumulate = laser_on || model.has_boundary_exchange();
-        let update = |(k, (((e, t), m), (laser, boundary))): (usize, OwnSlots<'_>)| {
-            core(k, e, t, m);
-            *laser += dt_sub * laser_power[k];
-            *boundary += dt_sub * boundary_flow[k];
+        let accumulators: Box<dyn Iterator<Item = Accumulators<'_>>> = if accumulate {
+            Box::new(
+                laser_energy
+                    .chunks_mut(CHUNK)
+                    .zip(boundary_energy.chunks_mut(CHUNK))
+                    .map(Some),
+            )
+        } else {
+            Box::new(std::iter::repeat_with(|| None))
         };
-        match (crate::worth_parallel(n), accumulate) {
-            (true, true) => {
-                let own = enthalpy
-                    .par_iter_mut()
-                    .zip(temperature.par_iter_mut())
-                    .zip(melted.par_iter_mut());
-                own.zip(
-                    laser_energy
-                        .par_iter_mut()
-                        .zip(boundary_energy.par_iter_mut()),
-                )
-                .enumerate()
-                .for_each(update);
+        let chunks: Vec<_> = enthalpy
+            .chunks_mut(CHUNK)
+            .zip(temperature.chunks_mut(CHUNK))
+            .zip(melted.chunks_mut(CHUNK))
+            .zip(accumulators)
+            .collect();
+        let update = |c: usize, (((e, t), m), accumulated): Chunk<'_>| {
+            let first = c * CHUNK;
+            for (k, ((e, t), m)) in (first..).zip(e.iter_mut().zip(t).zip(m)) {
+                core(k, e, t, m);
             }
-            (false, true) => {
-                let own = enthalpy
-                    .iter_mut()
-                    .zip(temperature.iter_mut())
-                    .zip(melted.iter_mut());
-                own.zip(laser_energy.iter_mut().zip(boundary_energy.iter_mut()))
-                    .enumerate()
-                    .for_each(update);
+            if let Some((laser, boundary)) = accumulated {
+                for (k, (laser, boundary)) in (first..).zip(laser.iter_mut().zip(boundary)) {
+                    *laser += dt_sub * laser_power[k];
+                    *boundary += dt_sub * boundary_flow[k];
+                }
             }
-            (true, false) => {
-                let own = enthalpy
-                    .par_iter_mut()
-                    .zip(temperature.par_iter_mut())
-                    .zip(melted.par_iter_mut());
-                own.enumerate()
-                    .for_each(|(k, ((e, t), m))| core(k, e, t, m));
-            }
-            (false, false) => {
-                let own = enthalpy
-                    .iter_mut()
-                    .zip(temperature.iter_mut())
-                    .zip(melted.iter_mut());
-                own.enumerate()
-                    .for_each(|(k, ((e, t), m))| core(k, e, t, m));
+        };
+        if crate::worth_parallel(n) {
+            // Each member of the thread team takes the same share of the chunks as in the
+            // step's other passes.
+            Team::current().fold_items(chunks, || (), |(), c, chunk| update(c, chunk), |(), ()| ());
+        } else {
+            for (c, chunk) in chunks.into_iter().enumerate() {
+                update(c, chunk);
             }
         }
     }

@@ -1,0 +1,508 @@
+//! A team of threads for the passes of a step: every member takes the same share of each pass
+//! and the members meet at a spinning barrier between passes, as OpenMP's threads do.
+//!
+//! Rayon hands out work by splitting and stealing, which balances any load but costs a few
+//! microseconds per parallel region and scatters a pass's items over the threads anew each
+//! time. A step of the 19.2k LIGGGHTS bed at 2 threads lasts about half a millisecond and opens
+//! five regions: rayon's spinning and sleeping took about 6 % of the samples there, and a phase
+//! of the pair pass lasted 2-6 % longer than its busier thread (docs/performance.md, thirteenth
+//! round). A team member takes its share first (the same contiguous part of the particles and
+//! slabs at every pass, so the same data in its cache), then helps the others from the back of
+//! theirs ([`Team::fold_items`]: on a shared machine a member may lose its core for a while), and
+//! spins between regions instead of sleeping; a member idle for longer than 200 µs (`SPIN`)
+//! sleeps until the next job (outside the step loop).
+//!
+//! The team has as many members as the rayon pool the caller runs in (`--threads`): the caller is
+//! member 0 and the others are threads of the team's own. Results are the same for any size and
+//! any division of the work: the passes' partials are merged with associative, commutative
+//! merges (`max`, the lowest index on ties), and every sum stays within a slab or a particle.
+
+#![allow(unsafe_code)]
+
+use std::cell::UnsafeCell;
+use std::collections::HashMap;
+use std::ops::Range;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Condvar, Mutex, OnceLock};
+use std::time::{Duration, Instant};
+
+/// How long a member waits for the next job before it sleeps: far longer than the gaps between
+/// the regions of a step (microseconds), far shorter than a human notices a busy core. For the
+/// first eighth it spins, then it yields its core to other threads between looks.
+const SPIN: Duration = Duration::from_micros(200);
+
+/// A job as the members see it: the caller's closure with its lifetime erased. It is called only
+/// between the caller's posting it and the last member's reporting back, while the caller waits
+/// in [`Team::run`], so the closure outlives every call.
+type Job = *const (dyn Fn(usize) + Sync);
+
+/// What the caller and the members share.
+struct Shared {
+    /// Posted jobs so far; a member runs each once.
+    generation: AtomicUsize,
+    /// Members (besides the caller) still running the current job.
+    running: AtomicUsize,
+    /// The current job, written before `generation` is raised and read after it is seen.
+    job: UnsafeCell<Option<Job>>,
+    /// A member's job panicked: the caller panics too, once every member is done.
+    panicked: AtomicBool,
+    /// Members asleep or about to sleep (they wait on `wake`).
+    sleeping: AtomicUsize,
+    lock: Mutex<()>,
+    wake: Condvar,
+}
+
+// SAFETY: `job` is written only by the caller while no member reads it (every member has
+// reported back on the previous job, and `generation` is raised after the write, with release
+// ordering) and read by the members only after they see the raised generation (acquire).
+unsafe impl Sync for Shared {}
+// SAFETY: as above; the job pointer is only dereferenced under that protocol.
+unsafe impl Send for Shared {}
+
+/// A team of `size` members; see the module's documentation.
+pub struct Team {
+    size: usize,
+    shared: Arc<Shared>,
+    /// One job at a time: a second caller waits.
+    caller: Mutex<()>,
+}
+
+impl std::fmt::Debug for Team {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Team").field("size", &self.size).finish()
+    }
+}
+
+impl Team {
+    /// A team of `size` members (at least 1): the caller and `size − 1` threads.
+    fn new(size: usize) -> Self {
+        let size = size.max(1);
+        let shared = Arc::new(Shared {
+            generation: AtomicUsize::new(0),
+            running: AtomicUsize::new(0),
+            job: UnsafeCell::new(None),
+            panicked: AtomicBool::new(false),
+            sleeping: AtomicUsize::new(0),
+            lock: Mutex::new(()),
+            wake: Condvar::new(),
+        });
+        for member in 1..size {
+            let shared = Arc::clone(&shared);
+            std::thread::Builder::new()
+                .name(format!("am-sim team {member}"))
+                .spawn(move || serve(&shared, member))
+                .expect("the operating system starts a thread");
+        }
+        Self {
+            size,
+            shared,
+            caller: Mutex::new(()),
+        }
+    }
+
+    /// The team for the rayon pool the caller runs in (as many members as it has threads),
+    /// made at the first call for that size and kept for the program's life.
+    #[must_use]
+    pub fn current() -> Arc<Self> {
+        thread_local! {
+            static LAST: std::cell::RefCell<Option<Arc<Team>>> = const { std::cell::RefCell::new(None) };
+        }
+        let size = rayon::current_num_threads();
+        LAST.with_borrow_mut(|last| {
+            if let Some(team) = last.as_ref().filter(|team| team.size == size) {
+                return Arc::clone(team);
+            }
+            static TEAMS: OnceLock<Mutex<HashMap<usize, Arc<Team>>>> = OnceLock::new();
+            let team = Arc::clone(
+                TEAMS
+                    .get_or_init(Mutex::default)
+                    .lock()
+                    .expect("no team was made by a panicking thread")
+                    .entry(size)
+                    .or_insert_with(|| Arc::new(Self::new(size))),
+            );
+            *last = Some(Arc::clone(&team));
+            team
+        })
+    }
+
+    /// Number of members.
+    #[must_use]
+    pub fn size(&self) -> usize {
+        self.size
+    }
+
+    /// The share of `count` items member `member` takes: contiguous, in member order, sizes
+    /// differing by at most one.
+    #[must_use]
+    pub fn share(&self, count: usize, member: usize) -> Range<usize> {
+        let (base, extra) = (count / self.size, count % self.size);
+        let start = member * base + member.min(extra);
+        start..start + base + usize::from(member < extra)
+    }
+
+    /// Runs `job(member)` once on every member, the caller as member 0, and returns when all
+    /// are done.
+    ///
+    /// # Panics
+    /// If a member's job panicked (after every member is done).
+    pub fn run(&self, job: &(dyn Fn(usize) + Sync)) {
+        if self.size == 1 {
+            job(0);
+            return;
+        }
+        let _one_at_a_time = self.caller.lock().unwrap_or_else(|e| e.into_inner());
+        let shared = &*self.shared;
+        // SAFETY: erasing the lifetime is sound because the caller does not return (nor unwind)
+        // before every member has reported back (`Wait` below), and the members call the job
+        // only before they report.
+        let erased: Job = unsafe {
+            std::mem::transmute::<*const (dyn Fn(usize) + Sync + '_), Job>(std::ptr::from_ref(job))
+        };
+        // SAFETY: every member reported back on the last job; none reads `job` until it sees
+        // the generation raised below.
+        unsafe { *shared.job.get() = Some(erased) };
+        shared.running.store(self.size - 1, Ordering::Relaxed);
+        shared.generation.fetch_add(1, Ordering::SeqCst);
+        if shared.sleeping.load(Ordering::SeqCst) > 0 {
+            let _guard = shared.lock.lock().unwrap_or_else(|e| e.into_inner());
+            shared.wake.notify_all();
+        }
+        /// Waits for the members even if the caller's share unwinds.
+        struct Wait<'a>(&'a Shared);
+        impl Drop for Wait<'_> {
+            fn drop(&mut self) {
+                let mut spins = 0_u32;
+                while self.0.running.load(Ordering::Acquire) != 0 {
+                    spins = spins.saturating_add(1);
+                    if spins < 1 << 16 {
+                        std::hint::spin_loop();
+                    } else {
+                        std::thread::yield_now();
+                    }
+                }
+            }
+        }
+        let wait = Wait(shared);
+        job(0);
+        drop(wait);
+        assert!(
+            !shared.panicked.swap(false, Ordering::AcqRel),
+            "a member of the thread team panicked"
+        );
+    }
+}
+
+impl Team {
+    /// `visit(member)` on every member, the results merged in member order (`merge` should be
+    /// associative and commutative, for the result not to depend on the team's size).
+    pub fn map_reduce<R: Send>(
+        &self,
+        identity: R,
+        visit: impl Fn(usize) -> R + Sync,
+        merge: impl Fn(R, R) -> R,
+    ) -> R {
+        if self.size == 1 {
+            return merge(identity, visit(0));
+        }
+        let results: Vec<Mutex<Option<R>>> = (0..self.size).map(|_| Mutex::new(None)).collect();
+        self.run(&|member| {
+            let result = visit(member);
+            *results[member].lock().unwrap_or_else(|e| e.into_inner()) = Some(result);
+        });
+        results.into_iter().fold(identity, |total, result| {
+            let result = result.into_inner().unwrap_or_else(|e| e.into_inner());
+            merge(total, result.expect("every member ran its share"))
+        })
+    }
+
+    /// Folds every item of `items` into a partial with `fold(partial, index, item)`, each
+    /// member starting from `identity()`, and merges the members' partials in member order (as
+    /// [`Team::map_reduce`]; `fold` and `merge` should give the same result in any grouping).
+    ///
+    /// Each member takes its share of the items (by [`Team::share`]) from the front, so that it
+    /// works on the same items at every pass. A member done with its share then takes items
+    /// from the back of the others' shares: a member whose core the host took for a while (this
+    /// machine is shared) is helped instead of waited for.
+    pub fn fold_items<T: Send, R: Send>(
+        &self,
+        items: Vec<T>,
+        identity: impl Fn() -> R + Sync,
+        fold: impl Fn(R, usize, T) -> R + Sync,
+        merge: impl Fn(R, R) -> R,
+    ) -> R {
+        let count = items.len();
+        if self.size == 1 {
+            let folded = items
+                .into_iter()
+                .enumerate()
+                .fold(identity(), |partial, (index, item)| {
+                    fold(partial, index, item)
+                });
+            return merge(identity(), folded);
+        }
+        let items = Items::new(items);
+        let shares: Vec<Claims> = (0..self.size)
+            .map(|member| Claims::new(self.share(count, member)))
+            .collect();
+        self.map_reduce(
+            identity(),
+            |member| {
+                let mut partial = identity();
+                for (turn, claims) in shares
+                    .iter()
+                    .cycle()
+                    .skip(member)
+                    .take(self.size)
+                    .enumerate()
+                {
+                    let own = turn == 0;
+                    while let Some(index) = claims.claim(own) {
+                        // SAFETY: `claim` hands out each index once.
+                        partial = fold(partial, index, unsafe { items.take(index) });
+                    }
+                }
+                partial
+            },
+            merge,
+        )
+    }
+}
+
+/// Items handed out one at a time by index; see [`Claims`].
+struct Items<T>(Vec<UnsafeCell<Option<T>>>);
+
+// SAFETY: an item is taken only by the member that claimed its index, and each index is
+// claimed once (`Claims`), so no two threads reach the same item.
+unsafe impl<T: Send> Sync for Items<T> {}
+
+impl<T> Items<T> {
+    fn new(items: Vec<T>) -> Self {
+        Self(
+            items
+                .into_iter()
+                .map(|item| UnsafeCell::new(Some(item)))
+                .collect(),
+        )
+    }
+
+    /// The item at `index`.
+    ///
+    /// # Safety
+    /// No other thread takes the same index (each is claimed once).
+    unsafe fn take(&self, index: usize) -> T {
+        // SAFETY: see above.
+        unsafe { (*self.0[index].get()).take() }.expect("each item is claimed once")
+    }
+}
+
+/// The unclaimed part of a share, `front..back` packed in one word, so that its owner (from the
+/// front) and the other members (from the back) claim each index exactly once.
+struct Claims(AtomicU64);
+
+impl Claims {
+    fn new(share: Range<usize>) -> Self {
+        let (front, back) = (
+            u32::try_from(share.start).expect("fewer than 2^32 items"),
+            u32::try_from(share.end).expect("fewer than 2^32 items"),
+        );
+        Self(AtomicU64::new(u64::from(front) << 32 | u64::from(back)))
+    }
+
+    /// Claims the next index from the front (`own`) or the back, if any is left.
+    fn claim(&self, own: bool) -> Option<usize> {
+        let mut current = self.0.load(Ordering::Acquire);
+        loop {
+            #[allow(clippy::cast_possible_truncation)]
+            let (front, back) = ((current >> 32) as u32, current as u32);
+            if front >= back {
+                return None;
+            }
+            let (claimed, next) = if own {
+                (front, u64::from(front + 1) << 32 | u64::from(back))
+            } else {
+                (back - 1, u64::from(front) << 32 | u64::from(back - 1))
+            };
+            match self
+                .0
+                .compare_exchange_weak(current, next, Ordering::AcqRel, Ordering::Acquire)
+            {
+                Ok(_) => return Some(claimed as usize),
+                Err(actual) => current = actual,
+            }
+        }
+    }
+}
+
+/// A member's life: wait for a job, run its share, report back.
+fn serve(shared: &Shared, member: usize) {
+    // The generation at the team's making (not at this thread's start: a job may be posted
+    // before the thread runs).
+    let mut seen = 0;
+    loop {
+        seen = next_job(shared, seen);
+        // SAFETY: the caller wrote the job before raising the generation just seen, and waits
+        // for this member's report before it returns.
+        let job = unsafe { (*shared.job.get()).expect("a job is posted with its generation") };
+        // SAFETY: see `Job`: the closure lives until this member reports back.
+        let outcome = catch_unwind(AssertUnwindSafe(|| unsafe { (*job)(member) }));
+        if outcome.is_err() {
+            shared.panicked.store(true, Ordering::Release);
+        }
+        shared.running.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+/// Waits until a generation after `seen` is posted and returns it: spinning for [`SPIN`], then
+/// asleep.
+fn next_job(shared: &Shared, seen: usize) -> usize {
+    let start = Instant::now();
+    let mut spins = 0_u32;
+    loop {
+        let generation = shared.generation.load(Ordering::Acquire);
+        if generation != seen {
+            return generation;
+        }
+        spins = spins.wrapping_add(1);
+        if spins % 64 != 0 {
+            std::hint::spin_loop();
+            continue;
+        }
+        let waited = start.elapsed();
+        if waited < SPIN / 8 {
+            continue;
+        }
+        if waited < SPIN {
+            // Another pool's threads may want the core meanwhile (rayon's, in the passes
+            // outside the team, or the neighbour-list build).
+            std::thread::yield_now();
+            continue;
+        }
+        let guard = shared.lock.lock().unwrap_or_else(|e| e.into_inner());
+        shared.sleeping.fetch_add(1, Ordering::SeqCst);
+        // Checked again after announcing the sleep: a caller that raised the generation before
+        // seeing `sleeping` is caught here, one that raised it after will notify.
+        let generation = shared.generation.load(Ordering::SeqCst);
+        if generation == seen {
+            drop(
+                shared
+                    .wake
+                    .wait_while(guard, |()| shared.generation.load(Ordering::SeqCst) == seen)
+                    .unwrap_or_else(|e| e.into_inner()),
+            );
+        } else {
+            drop(guard);
+        }
+        shared.sleeping.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shares_cover_the_items_once_in_order() {
+        for size in 1..5 {
+            let team = Team::new(size);
+            for count in [0, 1, 3, 7, 100] {
+                let mut next = 0;
+                for member in 0..size {
+                    let share = team.share(count, member);
+                    assert_eq!(share.start, next);
+                    assert!(share.len() == count / size || share.len() == count / size + 1);
+                    next = share.end;
+                }
+                assert_eq!(next, count);
+            }
+        }
+    }
+
+    #[test]
+    fn every_member_runs_every_job_once_also_after_sleeping() {
+        let team = Team::new(3);
+        let counts: Vec<AtomicUsize> = (0..3).map(|_| AtomicUsize::new(0)).collect();
+        for round in 0..200 {
+            if round % 50 == 49 {
+                // Long enough for the members to fall asleep.
+                std::thread::sleep(SPIN * 5);
+            }
+            team.run(&|member| {
+                counts[member].fetch_add(1, Ordering::Relaxed);
+            });
+            for count in &counts {
+                assert_eq!(count.load(Ordering::Relaxed), round + 1);
+            }
+        }
+    }
+
+    /// Every item is folded once, the partials come back in member order, and a member held
+    /// up on its first item is helped: the others take the rest of its share from the back.
+    #[test]
+    fn items_are_folded_once_and_a_held_up_member_is_helped() {
+        let team = Team::new(3);
+        let count = 1000;
+        let first_share = team.share(count, 0);
+        let (waiting, stolen) = (AtomicBool::new(false), AtomicBool::new(false));
+        // Each partial is a list of one list: the items its member folded, in order.
+        let folded = team.fold_items(
+            (0..count).collect(),
+            || vec![Vec::new()],
+            |mut partial: Vec<Vec<usize>>, index, item| {
+                assert_eq!(index, item);
+                if index == 0 {
+                    // Member 0 waits here until another member took an item of its share:
+                    // none but a helper can, while it waits.
+                    waiting.store(true, Ordering::Release);
+                    let start = Instant::now();
+                    while !stolen.load(Ordering::Acquire)
+                        && start.elapsed() < Duration::from_secs(10)
+                    {
+                        std::thread::yield_now();
+                    }
+                    waiting.store(false, Ordering::Release);
+                } else if first_share.contains(&index) && waiting.load(Ordering::Acquire) {
+                    stolen.store(true, Ordering::Release);
+                }
+                partial[0].push(index);
+                partial
+            },
+            |mut all, partial| {
+                all.extend(partial);
+                all
+            },
+        );
+        assert!(
+            stolen.load(Ordering::Acquire),
+            "nobody helped the held-up member"
+        );
+        assert_eq!(folded.len(), 4, "the identity and one partial per member");
+        assert_eq!(
+            folded[1][0], 0,
+            "member 0's partial comes first and begins its share"
+        );
+        let mut every: Vec<usize> = folded.concat();
+        every.sort_unstable();
+        assert_eq!(every, (0..count).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_panicking_member_makes_the_caller_panic_after_all_are_done() {
+        let team = Team::new(2);
+        let done = AtomicUsize::new(0);
+        let outcome = catch_unwind(AssertUnwindSafe(|| {
+            team.run(&|member| {
+                done.fetch_add(1, Ordering::Relaxed);
+                assert!(member != 1, "member 1 fails");
+            });
+        }));
+        assert!(outcome.is_err());
+        assert_eq!(done.load(Ordering::Relaxed), 2);
+        // The team still works.
+        team.run(&|_| {
+            done.fetch_add(1, Ordering::Relaxed);
+        });
+        assert_eq!(done.load(Ordering::Relaxed), 4);
+    }
+}
