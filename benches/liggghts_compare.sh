@@ -6,6 +6,8 @@
 # 97.2k bed) after a 500-step warm-up (its second "Loop time"); am-sim times its whole run loop of
 # 500 + 5000 (500 + 2000) steps (set-up excluded).
 #
+# The order of the two programs alternates from repetition to repetition.
+#
 # usage: benches/liggghts_compare.sh [LIGGGHTS_BENCH_DIR] [REPS] [THREADS...]
 #   defaults: ../shared/bench/liggghts, 3 repetitions, threads 1 2; HEATS="0 1" (environment)
 #   chooses the variants: 0 mechanics only, 1 with heat conduction (in.bench -var heat 1 against
@@ -45,13 +47,20 @@ for rep in $(seq 1 "$REPS"); do
     if [ "$size" = 20k ]; then N=19200 STEPS=5000; else N=97200 STEPS=2000; fi
     for heat in "${HEATS[@]}"; do
       for t in "${THREADS[@]}"; do
-        (cd "$WORK" && mpirun --allow-run-as-root -np "$t" liggghts -in in.bench -var tag "$size" \
-            -var heat "$heat" -var nsteps "$STEPS" -screen none -log lig.log)
-        loop=$(grep "Loop time" "$WORK"/lig.log | tail -1 | awk '{print $4}')
-        echo "liggghts $size $heat $t $(python3 -c "print($N*$STEPS/$loop/$t)")" >> "$results"
-        speed=$(cd "$WORK" && "$AM_SIM" "am_sim_${size}_heat$heat.toml" --threads "$t" --quiet \
-            --overwrite | awk '/particle-steps\/s/{print $2}')
-        echo "am-sim $size $heat $t $(python3 -c "print($speed/$t)")" >> "$results"
+        run_liggghts() {
+          (cd "$WORK" && mpirun --allow-run-as-root -np "$t" liggghts -in in.bench -var tag "$size" \
+              -var heat "$heat" -var nsteps "$STEPS" -screen none -log lig.log)
+          loop=$(grep "Loop time" "$WORK"/lig.log | tail -1 | awk '{print $4}')
+          echo "liggghts $size $heat $t $(python3 -c "print($N*$STEPS/$loop/$t)")" >> "$results"
+        }
+        run_am_sim() {
+          speed=$(cd "$WORK" && "$AM_SIM" "am_sim_${size}_heat$heat.toml" --threads "$t" --quiet \
+              --overwrite | awk '/particle-steps\/s/{print $2}')
+          echo "am-sim $size $heat $t $(python3 -c "print($speed/$t)")" >> "$results"
+        }
+        # Who goes first alternates from repetition to repetition: on a shared host the run
+        # after a 2-process run can be the slower one.
+        if (( rep % 2 )); then run_liggghts; run_am_sim; else run_am_sim; run_liggghts; fi
         echo "rep $rep, bed $size, heat $heat, $t thread(s): $(tail -2 "$results" | tr '\n' ' ')"
       done
     done
