@@ -165,22 +165,14 @@ fn each_chunk<T: Send>(
     visit: impl Fn(usize, T) -> (bool, f64) + Sync,
 ) -> (bool, f64) {
     let merge = |(a, x): (bool, f64), (b, y): (bool, f64)| (a || b, x.max(y));
-    if parallel {
-        // The members of the thread team take the same share of the chunks at every pass.
-        crate::team::Team::current().fold_items(
-            chunks,
-            || (false, 0.0),
-            |any, c, chunk| merge(any, visit(c * CHUNK, chunk)),
-            merge,
-        )
-    } else {
-        chunks
-            .into_iter()
-            .enumerate()
-            .fold((false, 0.0), |any, (c, chunk)| {
-                merge(any, visit(c * CHUNK, chunk))
-            })
-    }
+    // The members of the thread team take the same share of the chunks at every pass.
+    crate::team::fold_items(
+        parallel,
+        chunks,
+        || (false, 0.0),
+        |any, c, chunk| merge(any, visit(c * CHUNK, chunk)),
+        merge,
+    )
 }
 
 /// The first particle field that is NaN or infinite, as `(index, field name)`.

@@ -54,7 +54,6 @@ use rayon::prelude::*;
 
 use crate::periodic::Periodic;
 use crate::scatter::{NearList, NearPair, NearVisit, SlabVisit, Window};
-use crate::team::Team;
 
 /// The near skin as a fraction of the skin: small enough that the near lists hold few pairs
 /// beyond the touching ones (about 2.3 slots per particle on the LIGGGHTS bed, against 4.8
@@ -715,19 +714,16 @@ impl NeighborList {
             partial
         };
         let mut total = identity.clone();
-        let team = parallel.then(Team::current);
         for phase in &self.phases {
-            let part = if let Some(team) = team.as_ref().filter(|_| phase.len() > 1) {
-                // The members take the same share of every phase's slabs at every pass.
-                team.fold_items(
-                    phase.iter().collect(),
-                    || identity.clone(),
-                    |partial, _, slab| merge(partial, run_slab(slab)),
-                    &merge,
-                )
-            } else {
-                phase.iter().map(run_slab).fold(identity.clone(), &merge)
-            };
+            // The members of the thread team take the same share of every phase's slabs at
+            // every pass.
+            let part = crate::team::fold_items(
+                parallel && phase.len() > 1,
+                phase.iter().collect(),
+                || identity.clone(),
+                |partial, _, slab| merge(partial, run_slab(slab)),
+                &merge,
+            );
             total = merge(total, part);
         }
         total

@@ -632,22 +632,14 @@ where
         }
         partial
     };
-    if parallel {
-        // The members of the thread team take the same share of the chunks at every pass.
-        crate::team::Team::current().fold_items(
-            states.iter_mut().collect(),
-            || identity.clone(),
-            chunk,
-            &merge,
-        )
-    } else {
-        states
-            .iter_mut()
-            .enumerate()
-            .fold(identity.clone(), |partial, (c, state)| {
-                chunk(partial, c, state)
-            })
-    }
+    // The members of the thread team take the same share of the chunks at every pass.
+    crate::team::fold_items(
+        parallel,
+        states.iter_mut().collect(),
+        || identity.clone(),
+        chunk,
+        &merge,
+    )
 }
 
 #[cfg(test)]

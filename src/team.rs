@@ -127,12 +127,6 @@ impl Team {
         })
     }
 
-    /// Number of members.
-    #[must_use]
-    pub fn size(&self) -> usize {
-        self.size
-    }
-
     /// The share of `count` items member `member` takes: contiguous, in member order, sizes
     /// differing by at most one.
     #[must_use]
@@ -197,7 +191,7 @@ impl Team {
 impl Team {
     /// `visit(member)` on every member, the results merged in member order (`merge` should be
     /// associative and commutative, for the result not to depend on the team's size).
-    pub fn map_reduce<R: Send>(
+    fn map_reduce<R: Send>(
         &self,
         identity: R,
         visit: impl Fn(usize) -> R + Sync,
@@ -218,8 +212,8 @@ impl Team {
     }
 
     /// Folds every item of `items` into a partial with `fold(partial, index, item)`, each
-    /// member starting from `identity()`, and merges the members' partials in member order (as
-    /// [`Team::map_reduce`]; `fold` and `merge` should give the same result in any grouping).
+    /// member starting from `identity()`, and merges the members' partials into `identity()` in
+    /// member order (`fold` and `merge` should give the same result in any grouping).
     ///
     /// Each member takes its share of the items (by [`Team::share`]) from the front, so that it
     /// works on the same items at every pass. A member done with its share then takes items
@@ -234,13 +228,7 @@ impl Team {
     ) -> R {
         let count = items.len();
         if self.size == 1 {
-            let folded = items
-                .into_iter()
-                .enumerate()
-                .fold(identity(), |partial, (index, item)| {
-                    fold(partial, index, item)
-                });
-            return merge(identity(), folded);
+            return fold_serially(items, identity, fold, merge);
         }
         let items = Items::new(items);
         let shares: Vec<Claims> = (0..self.size)
@@ -268,6 +256,39 @@ impl Team {
             merge,
         )
     }
+}
+
+/// [`Team::fold_items`] on the team of the caller's rayon pool if `parallel`, else on the calling
+/// thread (the same result: see [`Team::fold_items`]). The passes decide `parallel` by their size
+/// (`crate::worth_parallel`).
+pub fn fold_items<T: Send, R: Send>(
+    parallel: bool,
+    items: Vec<T>,
+    identity: impl Fn() -> R + Sync,
+    fold: impl Fn(R, usize, T) -> R + Sync,
+    merge: impl Fn(R, R) -> R,
+) -> R {
+    if parallel {
+        Team::current().fold_items(items, identity, fold, merge)
+    } else {
+        fold_serially(items, identity, fold, merge)
+    }
+}
+
+/// The items folded in order into one partial, merged into `identity()`.
+fn fold_serially<T, R>(
+    items: Vec<T>,
+    identity: impl Fn() -> R,
+    fold: impl Fn(R, usize, T) -> R,
+    merge: impl Fn(R, R) -> R,
+) -> R {
+    let folded = items
+        .into_iter()
+        .enumerate()
+        .fold(identity(), |partial, (index, item)| {
+            fold(partial, index, item)
+        });
+    merge(identity(), folded)
 }
 
 /// Items handed out one at a time by index; see [`Claims`].

@@ -32,7 +32,6 @@ use rayon::prelude::*;
 use crate::model::Wall;
 use crate::neighbor::NeighborList;
 use crate::particles::Particles;
-use crate::team::Team;
 
 /// Thermal data of one material (SI).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -613,15 +612,15 @@ pub fn advance(
                 }
             }
         };
-        if crate::worth_parallel(n) {
-            // Each member of the thread team takes the same share of the chunks as in the
-            // step's other passes.
-            Team::current().fold_items(chunks, || (), |(), c, chunk| update(c, chunk), |(), ()| ());
-        } else {
-            for (c, chunk) in chunks.into_iter().enumerate() {
-                update(c, chunk);
-            }
-        }
+        // The members of the thread team take the same share of the chunks as in the step's
+        // other passes.
+        crate::team::fold_items(
+            crate::worth_parallel(n),
+            chunks,
+            || (),
+            |(), c, chunk| update(c, chunk),
+            |(), ()| (),
+        );
     }
     state.substeps = substeps;
     state.max_substeps = state.max_substeps.max(substeps);
