@@ -14,9 +14,7 @@ use glam::DVec3;
 
 use crate::contact::rolling;
 use crate::particles::{Particles, Rotation};
-
-/// Particles per task of the integration passes.
-const CHUNK: usize = 1024;
+use crate::team::{PARTICLES_PER_ITEM as CHUNK, optional_items};
 
 /// The per-particle sums the force pass adds into besides the forces and torques (with
 /// `[thermal]`: the heat flows \[W\] and the total conductances \[W/K\]), which [`kick_drift`]
@@ -57,9 +55,9 @@ pub fn kick_drift(
         .zip(
             force
                 .chunks_mut(CHUNK)
-                .zip(optional_chunks(omega).zip(optional_chunks(torque))),
+                .zip(optional_items(omega).zip(optional_items(torque))),
         )
-        .zip(optional_chunks(first_sum).zip(optional_chunks(second_sum)))
+        .zip(optional_items(first_sum).zip(optional_items(second_sum)))
         .collect();
     let drift = each_chunk(chunks, parallel, |first, (((x, v), (f, angular)), sums)| {
         let mut moved = false;
@@ -116,7 +114,7 @@ pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64)
         .unzip();
     let chunks: Vec<_> = velocity
         .chunks_mut(CHUNK)
-        .zip(optional_chunks(omega).zip(optional_chunks(torque)))
+        .zip(optional_items(omega).zip(optional_items(torque)))
         .collect();
     each_chunk(chunks, parallel, |first, (v, angular)| {
         for (k, v) in (first..).zip(v.iter_mut()) {
@@ -127,15 +125,6 @@ pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64)
         }
         (false, 0.0)
     });
-}
-
-/// `slice` in chunks of [`CHUNK`], or `None` for every chunk without it (a scene without
-/// rotation).
-fn optional_chunks<T>(slice: Option<&mut [T]>) -> Box<dyn Iterator<Item = Option<&mut [T]>> + '_> {
-    match slice {
-        Some(slice) => Box::new(slice.chunks_mut(CHUNK).map(Some)),
-        None => Box::new(std::iter::repeat_with(|| None)),
-    }
 }
 
 /// Half kick of the angular velocities of particles `first..` (M.62): `ω += (dt/2) τ / I`,

@@ -12,9 +12,9 @@
 
 use crate::contact::tangential::TangentialSpring;
 
-/// Consecutive particles per chunk: small enough that a 19.2k-particle bed has 19 chunks to
-/// share among the threads, large enough that the per-chunk work dwarfs the task's overhead.
-pub const PARTICLES_PER_CHUNK: usize = 1024;
+/// Consecutive particles per chunk: the thread team's items of a pass over particles, so that a
+/// chunk's springs are read and written by the member that takes its particles.
+pub const PARTICLES_PER_CHUNK: usize = crate::team::PARTICLES_PER_ITEM;
 
 /// One non-zero wall spring: particle index, wall index and the spring.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -32,6 +32,7 @@ use rayon::prelude::*;
 use crate::model::Wall;
 use crate::neighbor::NeighborList;
 use crate::particles::Particles;
+use crate::team::{PARTICLES_PER_ITEM, optional_items};
 
 /// Thermal data of one material (SI).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -494,9 +495,6 @@ pub fn max_stiffness(
     heat_flows(model, walls, particles, list, state)
 }
 
-/// Particles per chunk of the temperature update.
-const CHUNK: usize = 1024;
-
 /// A chunk's laser and boundary energy accumulators, kept with a laser or boundary exchange.
 type Accumulators<'a> = Option<(&'a mut [f64], &'a mut [f64])>;
 
@@ -584,24 +582,25 @@ pub fn advance(
         // The energy accumulators cost two more streams; a scene without laser and boundary
         // exchange does not pay for them (its laser and boundary powers are zero anyway).
         let accumulate = laser_on || model.has_boundary_exchange();
-        let accumulators: Box<dyn Iterator<Item = Accumulators<'_>>> = if accumulate {
-            Box::new(
-                laser_energy
-                    .chunks_mut(CHUNK)
-                    .zip(boundary_energy.chunks_mut(CHUNK))
-                    .map(Some),
+        let (laser_energy, boundary_energy) = if accumulate {
+            (
+                Some(laser_energy.as_mut_slice()),
+                Some(boundary_energy.as_mut_slice()),
             )
         } else {
-            Box::new(std::iter::repeat_with(|| None))
+            (None, None)
         };
+        let accumulators = optional_items(laser_energy)
+            .zip(optional_items(boundary_energy))
+            .map(|(laser, boundary)| laser.zip(boundary));
         let chunks: Vec<_> = enthalpy
-            .chunks_mut(CHUNK)
-            .zip(temperature.chunks_mut(CHUNK))
-            .zip(melted.chunks_mut(CHUNK))
+            .chunks_mut(PARTICLES_PER_ITEM)
+            .zip(temperature.chunks_mut(PARTICLES_PER_ITEM))
+            .zip(melted.chunks_mut(PARTICLES_PER_ITEM))
             .zip(accumulators)
             .collect();
         let update = |c: usize, (((e, t), m), accumulated): Chunk<'_>| {
-            let first = c * CHUNK;
+            let first = c * PARTICLES_PER_ITEM;
             for (k, ((e, t), m)) in (first..).zip(e.iter_mut().zip(t).zip(m)) {
                 core(k, e, t, m);
             }
