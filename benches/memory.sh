@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
 # Peak memory per particle (issue 5: at most 400 bytes per particle, and a 1M-particle bed within a
 # 24 GiB machine): peak resident set size (/usr/bin/time -v) divided by the particle count, for the
-# two LIGGGHTS benchmark beds and for a bed of one million spheres inserted at random (the
-# benchmark's material and contact model, 200 steps; written to a temporary scene so that the
-# test that builds every shipped scene does not insert a million spheres).
+# two LIGGGHTS benchmark beds, for a bed of one million spheres inserted at random (the
+# benchmark's material and contact model, 200 steps: loose, with few contacts) and for a packed
+# bed of 1,166,400 spheres (the 97.2k start configuration tiled 4 x 3 over its periodic box, so
+# that the copies meet as the periodic images did: the 97.2k bed's contacts, springs and near
+# lists, run 2500 steps as that bed is, so that the list is rebuilt and the springs carried over
+# as there). The large beds are written to a temporary folder, so that the test that builds every
+# shipped scene does not build a million spheres.
 #
 # usage: benches/memory.sh [THREADS]     (default 2; needs /usr/bin/time: apt-get install time)
 #   NO_HDF5=1 benches/memory.sh   measures a build without the HDF5 output (--no-default-features,
@@ -57,7 +61,31 @@ material = "steel"
 x_m = [0.0, 1.07e-2]
 y_m = [0.0, 1.07e-2]
 TOML
-for scene in scenes/liggghts_bed_20k.toml scenes/liggghts_bed_100k.toml "$WORK/bed_1m.toml"; do
+# The packed bed: the 97.2k bed's dump tiled 4 x 3 over its 2.97 mm box, ids offset per copy.
+python3 - scenes/data/liggghts_start_100k.dump.gz "$WORK/bed_1m_packed.dump" <<'PYTHON'
+import gzip, sys
+BOX, TILES = 2.97e-3, (4, 3)
+with gzip.open(sys.argv[1], "rt") as dump:
+    lines = dump.read().splitlines()
+start = next(i for i, line in enumerate(lines) if line.startswith("ITEM: ATOMS")) + 1
+atoms = [line.split() for line in lines[start:] if line.strip()]
+with open(sys.argv[2], "w") as out:
+    out.write(f"ITEM: TIMESTEP\n0\nITEM: NUMBER OF ATOMS\n{len(atoms) * TILES[0] * TILES[1]}\n")
+    out.write(f"ITEM: BOX BOUNDS pp pp ff\n0 {BOX * TILES[0]!r}\n0 {BOX * TILES[1]!r}\n0 0.001\n")
+    out.write("ITEM: ATOMS id x y z vx vy vz radius\n")
+    for i in range(TILES[0]):
+        for j in range(TILES[1]):
+            offset = (i * TILES[1] + j) * len(atoms)
+            for a in atoms:
+                x, y = float(a[1]) + i * BOX, float(a[2]) + j * BOX
+                out.write(f"{int(a[0]) + offset} {x!r} {y!r} {' '.join(a[3:8])}\n")
+PYTHON
+sed -e 's|^file = .*|file = "bed_1m_packed.dump"|' -e 's|^x_m = .*|x_m = [0.0, 1.188e-2]|' \
+    -e 's|^y_m = .*|y_m = [0.0, 8.91e-3]|' \
+    -e 's|^title = .*|title = "1,166,400 packed spheres: memory per particle"|' \
+    scenes/liggghts_bed_100k.toml > "$WORK/bed_1m_packed.toml"
+for scene in scenes/liggghts_bed_20k.toml scenes/liggghts_bed_100k.toml "$WORK/bed_1m.toml" \
+    "$WORK/bed_1m_packed.toml"; do
   /usr/bin/time -v "$BINARY" "$scene" --threads "$THREADS" --overwrite > "$WORK/out.txt" 2> "$WORK/time.txt"
   n=$(grep -oE '— [0-9]+ particles' "$WORK/out.txt" | grep -oE '[0-9]+' | head -1)
   kb=$(awk '/Maximum resident set size/{print $6}' "$WORK/time.txt")
