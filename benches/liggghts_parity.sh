@@ -19,22 +19,8 @@ AM_SIM=$(realpath target/release/am-sim)
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 
-# The dump as a LAMMPS data file (atom_style granular: id type diameter density x y z).
-python3 - "$PWD/scenes/data/liggghts_start_20k.dump.gz" "$WORK/start_20k.data" <<'PY'
-import gzip, sys
-lines = gzip.open(sys.argv[1], "rt").read().split("\n")
-n = int(lines[lines.index("ITEM: NUMBER OF ATOMS") + 1])
-k = next(i for i, l in enumerate(lines) if l.startswith("ITEM: ATOMS"))
-rows = [l.split() for l in lines[k + 1:k + 1 + n]]
-with open(sys.argv[2], "w") as f:
-    f.write(f"dump of the settled bed\n\n{n} atoms\n1 atom types\n\n0 0.00132 xlo xhi\n"
-            "0 0.00132 ylo yhi\n0 0.001 zlo zhi\n\nAtoms\n\n")
-    for r in rows:
-        f.write(f"{r[0]} 1 {2 * float(r[7]):.6e} 7800 {r[1]} {r[2]} {r[3]}\n")
-    f.write("\nVelocities\n\n")
-    for r in rows:
-        f.write(f"{r[0]} {r[4]} {r[5]} {r[6]} 0 0 0\n")
-PY
+# The dump as a LAMMPS data file, for LIGGGHTS.
+python3 benches/dump_to_data.py scenes/data/liggghts_start_20k.dump.gz "$WORK/start_20k.data"
 sed -e 's|read_restart   settled_${tag}.restart|read_data start_${tag}.data|' "$BENCH"/in.bench > "$WORK"/in.parity
 (cd "$WORK" && mpirun --allow-run-as-root -np 2 liggghts -in in.parity -var tag 20k -var heat 0 \
     -var nsteps 5000 -var dumpx 1 -screen none -log parity.log)
