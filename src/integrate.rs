@@ -23,7 +23,8 @@ pub type Sums<'a> = Option<(&'a mut [f64], &'a mut [f64])>;
 
 /// The opening half of a step, in one pass over the particles: the half kick and the drift
 /// (M.30, M.31) and, with rotation, the half kick of ω (M.62). The half kick is the last reader
-/// of the step's forces and torques: the pass leaves them at zero, and `sums` too, ready for the
+/// of the step's forces and torques: the pass leaves each force at the particle's weight
+/// `m gravity` \[N\] (the contacts add to it) and the torques and `sums` at zero, ready for the
 /// next force pass to add into (`forces::compute` with `cleared`). Returns whether
 /// `moved_too_far(k, x)` held for some particle's new position `x` (the neighbour list's rebuild
 /// test, taken in the same pass: one parallel region and one sweep of the arrays instead of
@@ -32,7 +33,7 @@ pub fn kick_drift(
     particles: &mut Particles,
     rotation: Option<&mut Rotation>,
     sums: Sums<'_>,
-    dt: f64,
+    (dt, gravity): (f64, DVec3),
     moved_too_far: impl Fn(usize, DVec3) -> bool + Sync,
 ) -> Drift {
     let Particles {
@@ -59,29 +60,37 @@ pub fn kick_drift(
         )
         .zip(optional_items(first_sum).zip(optional_items(second_sum)))
         .collect();
-    let drift = each_chunk(chunks, parallel, |first, (((x, v), (f, angular)), sums)| {
-        let mut moved = false;
-        let mut max_speed_squared: f64 = 0.0;
-        for (k, ((x, v), f)) in (first..).zip(x.iter_mut().zip(v.iter_mut()).zip(f.iter_mut())) {
-            let velocity = *v + 0.5 * dt / mass[k] * *f;
-            // Taken from the register: read back from memory, the vector straddles the two
-            // stores that wrote it and waits for them (it doubled the pass's time).
-            max_speed_squared = max_speed_squared.max(velocity.length_squared());
-            *v = velocity;
-            *x += dt * velocity;
-            *f = DVec3::ZERO;
-            moved |= moved_too_far(k, *x);
-        }
-        if let (Some(w), Some(t)) = angular {
-            kick_angular(w, t, first, mass, radius, dt);
-            t.fill(DVec3::ZERO);
-        }
-        if let (Some(a), Some(b)) = sums {
-            a.fill(0.0);
-            b.fill(0.0);
-        }
-        (moved, max_speed_squared)
-    });
+    let merge = |(a, x): (bool, f64), (b, y): (bool, f64)| (a || b, x.max(y));
+    let drift = each_chunk(
+        chunks,
+        parallel,
+        (false, 0.0),
+        merge,
+        |first, (((x, v), (f, angular)), sums)| {
+            let mut moved = false;
+            let mut max_speed_squared: f64 = 0.0;
+            for (k, ((x, v), f)) in (first..).zip(x.iter_mut().zip(v.iter_mut()).zip(f.iter_mut()))
+            {
+                let velocity = *v + 0.5 * dt / mass[k] * *f;
+                // Taken from the register: read back from memory, the vector straddles the two
+                // stores that wrote it and waits for them (it doubled the pass's time).
+                max_speed_squared = max_speed_squared.max(velocity.length_squared());
+                *v = velocity;
+                *x += dt * velocity;
+                *f = mass[k] * gravity;
+                moved |= moved_too_far(k, *x);
+            }
+            if let (Some(w), Some(t)) = angular {
+                kick_angular(w, t, first, mass, radius, dt);
+                t.fill(DVec3::ZERO);
+            }
+            if let (Some(a), Some(b)) = sums {
+                a.fill(0.0);
+                b.fill(0.0);
+            }
+            (moved, max_speed_squared)
+        },
+    );
     Drift {
         moved_too_far: drift.0,
         max_speed: drift.1.sqrt(),
@@ -98,8 +107,11 @@ pub struct Drift {
     pub max_speed: f64,
 }
 
-/// The closing half kick (M.32) and, with rotation, that of ω (M.62), in one pass.
-pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64) {
+/// The closing half kick (M.32) and, with rotation, that of ω (M.62), in one pass. Returns the
+/// lowest particle whose force is NaN or infinite, if any (the run's guard: the kick is the
+/// pass that would carry it into the velocities, and it reads every force anyway).
+#[must_use]
+pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64) -> Option<usize> {
     let Particles {
         velocity,
         force,
@@ -116,15 +128,28 @@ pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64)
         .chunks_mut(CHUNK)
         .zip(optional_items(omega).zip(optional_items(torque)))
         .collect();
-    each_chunk(chunks, parallel, |first, (v, angular)| {
+    let lowest = |a: Option<usize>, b: Option<usize>| match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    };
+    each_chunk(chunks, parallel, None, lowest, |first, (v, angular)| {
+        let mut finite = true;
         for (k, v) in (first..).zip(v.iter_mut()) {
             *v += 0.5 * dt / mass[k] * force[k];
+            // `&`, not `&&`: no branch per particle.
+            let f = force[k];
+            finite &= f.x.is_finite() & f.y.is_finite() & f.z.is_finite();
         }
         if let (Some(w), Some(t)) = angular {
             kick_angular(w, t, first, mass, radius, dt);
         }
-        (false, 0.0)
-    });
+        // Searched only in the rare chunk that has one.
+        (!finite).then(|| {
+            (first..first + v.len())
+                .find(|&k| !force[k].is_finite())
+                .expect("a chunk with a non-finite force")
+        })
+    })
 }
 
 /// Half kick of the angular velocities of particles `first..` (M.62): `ω += (dt/2) τ / I`,
@@ -146,21 +171,22 @@ fn kick_angular(
 }
 
 /// Runs `visit(first, chunk)` for every chunk (`first`: the index of its first particle), in
-/// parallel when `parallel`, and returns whether any visit returned `true` with the largest of
-/// the numbers they returned (both exact, so the thread count does not change them).
-fn each_chunk<T: Send>(
+/// parallel when `parallel`, and returns what they returned merged into `identity` by `merge`
+/// (associative and commutative, so the thread count does not change the result).
+fn each_chunk<T: Send, R: Copy + Send + Sync>(
     chunks: Vec<T>,
     parallel: bool,
-    visit: impl Fn(usize, T) -> (bool, f64) + Sync,
-) -> (bool, f64) {
-    let merge = |(a, x): (bool, f64), (b, y): (bool, f64)| (a || b, x.max(y));
+    identity: R,
+    merge: impl Fn(R, R) -> R + Sync,
+    visit: impl Fn(usize, T) -> R + Sync,
+) -> R {
     // The members of the thread team take the same share of the chunks at every pass.
     crate::team::fold_items(
         parallel,
         chunks,
-        || (false, 0.0),
-        |any, c, chunk| merge(any, visit(c * CHUNK, chunk)),
-        merge,
+        || identity,
+        |partial, c, chunk| merge(partial, visit(c * CHUNK, chunk)),
+        &merge,
     )
 }
 
@@ -242,10 +268,17 @@ mod tests {
                 let mut heat_flow: Vec<f64> = (0..count).map(|k| k as f64 + 1.0).collect();
                 let mut conductance = heat_flow.clone();
                 let sums = Some((heat_flow.as_mut_slice(), conductance.as_mut_slice()));
-                let drift = kick_drift(&mut particles, Some(&mut rotation), sums, dt, |k, x| {
-                    // Particle k started at x = k: the test sees the drifted position.
-                    k == far && x.y > 0.0
-                });
+                let gravity = DVec3::new(0.0, 0.0, -2.0);
+                let drift = kick_drift(
+                    &mut particles,
+                    Some(&mut rotation),
+                    sums,
+                    (dt, gravity),
+                    |k, x| {
+                        // Particle k started at x = k: the test sees the drifted position.
+                        k == far && x.y > 0.0
+                    },
+                );
                 assert!(drift.moved_too_far, "{count} particles, particle {far}");
                 // The fastest particle is the last, |v| = (count − 1) √(1 + 1/16); the square
                 // root of the largest |v|² is exactly the largest |v| (rounding is monotone).
@@ -261,8 +294,9 @@ mod tests {
                     let w = rotation.angular_velocity[k].x;
                     assert!((w - 0.25 * kf / 0.4).abs() <= 1e-12 * kf, "ω of {k}: {w}");
                 }
-                // The half kick was the last reader: forces and torques are left at zero.
-                assert!(particles.force.iter().all(|f| *f == DVec3::ZERO));
+                // The half kick was the last reader: forces are left at the weights (m = 1 kg),
+                // torques at zero.
+                assert!(particles.force.iter().all(|f| *f == gravity));
                 assert!(rotation.torque.iter().all(|t| *t == DVec3::ZERO));
                 assert!(heat_flow.iter().chain(&conductance).all(|q| *q == 0.0));
                 // A force pass fills them again; the closing kick: v_z and ω grow by as much.
@@ -270,7 +304,7 @@ mod tests {
                 particles.force.clone_from(&refilled.force);
                 let (_, refilled) = row(count);
                 rotation.torque.clone_from(&refilled.torque);
-                kick(&mut particles, Some(&mut rotation), dt);
+                assert_eq!(kick(&mut particles, Some(&mut rotation), dt), None);
                 for k in 0..count {
                     let kf = k as f64;
                     assert_eq!(particles.velocity[k].z, 0.5 * kf);
@@ -278,13 +312,19 @@ mod tests {
                     assert!((w - 0.5 * kf / 0.4).abs() <= 1e-12 * kf, "ω of {k}: {w}");
                 }
                 // Without rotation the torques are neither used nor cleared.
-                let none = kick_drift(&mut particles, None, None, dt, |_, _| false);
+                let none = kick_drift(&mut particles, None, None, (dt, DVec3::ZERO), |_, _| false);
                 assert!(!none.moved_too_far, "nobody moved too far");
                 assert!(particles.force.iter().all(|f| *f == DVec3::ZERO));
                 assert_eq!(rotation.torque, refilled.torque);
                 for k in 0..count {
                     assert_eq!(particles.velocity[k].z, 0.75 * k as f64);
                 }
+                // The closing kick names the lowest particle whose force is not finite, in
+                // whichever chunk it is.
+                particles.force[count - 1].x = f64::INFINITY;
+                assert_eq!(kick(&mut particles, None, dt), Some(count - 1));
+                particles.force[far].y = f64::NAN;
+                assert_eq!(kick(&mut particles, None, dt), Some(far.min(count - 1)));
             }
         }
     }

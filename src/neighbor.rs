@@ -522,6 +522,13 @@ impl NeighborList {
         self.generation = GENERATIONS.fetch_add(1, Ordering::Relaxed);
     }
 
+    /// The skin \[m\]: the list holds every pair whose gap was below it at the build, and is
+    /// rebuilt before any particle moves more than half of it from its reference position.
+    #[must_use]
+    pub fn skin(&self) -> f64 {
+        self.skin
+    }
+
     /// The near skin \[m\]: a pair whose gap is below it at a refresh is in its slab's near list
     /// ([`NEAR_SKIN_FRACTION`] of the skin).
     #[must_use]

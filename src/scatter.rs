@@ -589,8 +589,9 @@ impl<T> Scatter<'_, T, PerSlab> {
     }
 }
 
-/// Calls `visit(partial, state, window)` once for every particle `0..count`, with a window
-/// allowing that particle alone. The particles go in chunks of `chunk_len` consecutive indices:
+/// Calls `visit(partial, state, window)` once for every particle `0..count` (or, with `listed`,
+/// for each particle it names), with a window allowing that particle alone. The particles go in
+/// chunks of `chunk_len` consecutive indices:
 /// a chunk's particles in ascending order with the chunk's own `states[c]` (so a visit may keep
 /// per-chunk data sorted by particle) and the chunk's own `partial` (from `identity`), which the
 /// visit updates in place, the chunks in parallel when `parallel`. The partials are reduced with
@@ -598,10 +599,13 @@ impl<T> Scatter<'_, T, PerSlab> {
 /// in [`crate::neighbor::NeighborList::for_each_owner`].
 ///
 /// # Panics
-/// If `states` does not hold one state per chunk, or with 2^32 particles or more.
+/// If `states` does not hold one state per chunk, with 2^32 particles or more, or if `listed`
+/// is not strictly ascending below `count`.
+#[allow(clippy::too_many_arguments)]
 pub fn for_each_particle<S, R, V, M>(
     count: usize,
     chunk_len: usize,
+    listed: Option<&[u32]>,
     states: &mut [S],
     parallel: bool,
     identity: R,
@@ -623,12 +627,30 @@ where
         u32::try_from(count).is_ok(),
         "{count} particles: a particle's token holds its index in 32 bits"
     );
+    // Strictly ascending: no particle is named twice (the windows' safety rests on it).
+    assert!(
+        listed.is_none_or(|listed| listed.is_sorted_by(|a, b| a < b)
+            && listed.last().is_none_or(|&k| (k as usize) < count)),
+        "the listed particles must be strictly ascending and below {count}"
+    );
     // A chunk's particles add into the partial they are given.
     let chunk = |mut partial: R, c: usize, state: &mut S| {
-        for k in c * chunk_len..((c + 1) * chunk_len).min(count) {
-            // SAFETY: every particle is visited exactly once.
+        let range = c * chunk_len..((c + 1) * chunk_len).min(count);
+        let mut visit_one = |k: usize| {
+            // SAFETY: every particle is visited at most once: each chunk visits its own range,
+            // and a list names each particle once.
             let window = unsafe { Window::particle(k) };
             visit(&mut partial, state, &window);
+        };
+        match listed {
+            None => range.for_each(&mut visit_one),
+            Some(listed) => {
+                let first = listed.partition_point(|&k| (k as usize) < range.start);
+                let end = listed.partition_point(|&k| (k as usize) < range.end);
+                listed[first..end]
+                    .iter()
+                    .for_each(|&k| visit_one(k as usize));
+            }
         }
         partial
     };

@@ -1,17 +1,18 @@
 //! The state of a run and one time step.
 //!
 //! # Step order (docs/model.md, "Step order")
-//! 1. Half kick and drift (velocity Verlet, M.30-M.31).
+//! 1. Half kick and drift (velocity Verlet, M.30-M.31); forces start over at the weights m g.
 //! 2. Rebuild the neighbour list if a particle moved more than half the skin; bond states follow
 //!    their pairs by id.
 //! 3. With `[laser]`: absorbed powers, the beam at mid-step, on the drifted positions.
 //! 4. Pair pass: normal forces of every pair, bond formation and breakage (paper eq. 25), and
 //!    with `[thermal]` each contact's conductance.
-//! 5. Gather: per-particle sum of pair forces in fixed order, plus gravity and walls; with
-//!    `[thermal]` also the first substep's heat flows over the same incidence lists.
+//! 5. Particle pass: the walls, for the particles that can touch one before the next rebuild;
+//!    with `[thermal]` also the first substep's heat flows from walls, gas, surroundings and
+//!    laser.
 //! 6. With `[thermal]`: the temperatures over dt (M.49); melted flags latch. The bond criterion
 //!    of the next step's pair pass reads them.
-//! 7. Second half kick (M.32).
+//! 7. Second half kick (M.32), which reports the first non-finite force.
 
 use crate::contact::tangential::TangentialSpring;
 use crate::contact::{BondState, NormalParams, hertz, rolling, tangential};
@@ -44,6 +45,9 @@ pub struct Simulation {
     laser_snapshot: laser::Snapshot,
     /// What the last force pass saw (the per-step guards read it).
     force_summary: ForceSummary,
+    /// The lowest particle whose force was NaN or infinite at the last step's closing kick (or
+    /// at the set-up's force pass): the first per-step guard.
+    non_finite_force: Option<usize>,
     /// Largest overlap ratio of any step of this run so far.
     peak_overlap_ratio: f64,
     /// Energies this run started from (the balances are measured against them).
@@ -66,6 +70,9 @@ pub struct Simulation {
     /// Off: every force pass records the near lists anew, testing every candidate (the
     /// reference the near lists are tested against).
     near_lists: bool,
+    /// The particles that may touch a wall before the next rebuild (the particle pass visits
+    /// only these when the scene has no heat).
+    walls: forces::WallCandidates,
     /// Steps taken.
     pub step: u64,
     /// Simulated time \[s\].
@@ -322,6 +329,7 @@ impl Simulation {
             thermal,
             laser_snapshot: laser::Snapshot::default(),
             force_summary: ForceSummary::default(),
+            non_finite_force: None,
             peak_overlap_ratio: 0.0,
             start: StartEnergies::default(),
             rotation,
@@ -330,6 +338,7 @@ impl Simulation {
             near_travel: 0.0,
             near_refreshes: 0,
             near_lists: true,
+            walls: forces::WallCandidates::default(),
             removed: Removed::default(),
             step: 0,
             time: 0.0,
@@ -340,6 +349,7 @@ impl Simulation {
             sim.apply_initial_regions();
         }
         sim.force_summary = sim.compute_forces(false);
+        sim.non_finite_force = sim.particles.force.iter().position(|f| !f.is_finite());
         sim.clear_tangential_history();
         // The t = 0 evaluation did no work over time; the energy the run starts with already
         // counts any bond it formed.
@@ -635,6 +645,7 @@ impl Simulation {
             thermal,
             laser_snapshot: state.laser.unwrap_or_default(),
             force_summary: ForceSummary::default(),
+            non_finite_force: None,
             peak_overlap_ratio: 0.0,
             start: StartEnergies::default(),
             rotation,
@@ -643,6 +654,7 @@ impl Simulation {
             near_travel: 0.0,
             near_refreshes: 0,
             near_lists: true,
+            walls: forces::WallCandidates::default(),
             removed: state.removed,
             step: state.step,
             time: 0.0,
@@ -891,8 +903,8 @@ impl Simulation {
             &self.model,
             &mut self.particles,
             &self.neighbors,
-            &mut self.near,
-            refresh_near,
+            (&mut self.near, refresh_near),
+            &mut self.walls,
             self.model
                 .has_bonds()
                 .then_some(self.bond_states.as_mut_slice()),
@@ -982,7 +994,7 @@ impl Simulation {
             &mut self.particles,
             self.rotation.as_mut(),
             sums,
-            dt,
+            (dt, self.model.gravity),
             |k, x| neighbors.moved_too_far(k, x),
         );
         self.near_travel += dt * drift.max_speed;
@@ -990,14 +1002,14 @@ impl Simulation {
             self.rebuild_neighbors();
         }
         self.absorb_laser();
-        // The opening pass left the forces, torques and heat sums at zero (a rebuild permutes
-        // and drops particles but keeps zeros zero).
+        // The opening pass left the forces at the weights and the torques and heat sums at zero
+        // (a rebuild permutes and drops particles with their forces).
         let summary = self.compute_forces(true);
         self.peak_overlap_ratio = self.peak_overlap_ratio.max(summary.max_overlap_ratio);
         self.force_summary = summary;
         let first_flows = self.thermal.is_some().then_some(summary.max_heat_rate);
         self.advance_temperatures(first_flows);
-        integrate::kick(&mut self.particles, self.rotation.as_mut(), dt);
+        self.non_finite_force = integrate::kick(&mut self.particles, self.rotation.as_mut(), dt);
         self.step += 1;
         #[allow(clippy::cast_precision_loss)]
         let time = self.step as f64 * dt; // no accumulated round-off over millions of steps
@@ -1135,7 +1147,7 @@ impl Simulation {
     #[must_use]
     pub fn guard_trip(&self) -> Option<GuardTrip> {
         let summary = &self.force_summary;
-        if let Some(k) = summary.non_finite_force {
+        if let Some(k) = self.non_finite_force {
             return Some(GuardTrip {
                 quantity: "a non-finite (NaN or infinite) force".into(),
                 ids: vec![self.particles.id[k]],

@@ -205,18 +205,20 @@ fn tangential_step<const ROLLING: bool>(
 /// The force pass (steps 4-5 of the step order): every particle's force, with rotation its
 /// torque, with `[thermal]` its first-substep heat flows and total conductances; bond states
 /// (`states`, per slot, given when the scene has a bond law) and tangential histories advance by
-/// one step. Returns what the per-step guards need. `cleared`: the forces, torques, heat flows
-/// and total conductances are already zero (the step's opening pass, `integrate::kick_drift`,
-/// leaves them so), and the pass adds into them without zeroing them first (with heat: three
-/// parallel regions fewer per step). `near`: the near lists, recorded anew if
-/// `refresh_near` (or if they do not belong to the list's build), read otherwise.
+/// one step. Returns what the per-step guards need. `cleared`: the forces hold each particle's
+/// weight `m g` and the torques, heat flows and total conductances are zero (the step's opening
+/// pass, `integrate::kick_drift`, leaves them so), and the pass adds into them without setting
+/// them first (with heat: three parallel regions fewer per step). `near`: the near lists,
+/// recorded anew if `refresh_near` (or if they do not belong to the list's build), read
+/// otherwise. `walls`: the particles that may touch a wall, taken anew from the list's
+/// reference positions if they belong to another build.
 #[allow(clippy::too_many_arguments)]
 pub fn compute(
     model: &Model,
     particles: &mut Particles,
     list: &NeighborList,
-    near: &mut NearPairs,
-    refresh_near: bool,
+    (near, refresh_near): (&mut NearPairs, bool),
+    walls: &mut WallCandidates,
     states: Option<&mut [BondState]>,
     rotation: Option<PassRotation<'_>>,
     mut heat: Option<PassHeat<'_>>,
@@ -224,10 +226,11 @@ pub fn compute(
 ) -> ForceSummary {
     let parallel = crate::worth_parallel(particles.len());
     let set = InstructionSet::detect();
+    walls.refresh(model, list, &particles.radius);
     let mut forces = std::mem::take(&mut particles.force);
     let mut dissipated = std::mem::take(&mut particles.dissipated);
     if !cleared {
-        fill(&mut forces, DVec3::ZERO, parallel);
+        set_weights(&mut forces, &particles.mass, model.gravity);
     }
     let (mut rotation, mut histories) = match rotation {
         Some(PassRotation {
@@ -300,14 +303,93 @@ pub fn compute(
     };
     particles.force = forces;
     particles.dissipated = dissipated;
+    // Only the particles that may touch a wall have anything to add, unless heat comes from a
+    // laser or is exchanged with the walls, gas or surroundings: then every particle has. With
+    // heat, the largest G_i / C_i of all is then taken from the sums as they stand.
+    let every_particle = heat
+        .as_ref()
+        .is_some_and(|h| h.laser_power.is_some() || h.model.has_boundary_exchange());
+    let listed = (!every_particle).then_some(walls.particles.as_slice());
+    let heat_rate = heat.as_ref().filter(|_| listed.is_some()).map_or(0.0, |h| {
+        thermal::max_heat_rate(h.total_conductance, h.heat_capacity, parallel)
+    });
     // As for the pair pass: one compiled particle pass per combination of optional physics.
     let own = match (rotation.is_some(), heat.is_some()) {
-        (false, false) => particle_pass::<false, false>(model, particles, rotation, heat, parallel),
-        (false, true) => particle_pass::<false, true>(model, particles, rotation, heat, parallel),
-        (true, false) => particle_pass::<true, false>(model, particles, rotation, heat, parallel),
-        (true, true) => particle_pass::<true, true>(model, particles, rotation, heat, parallel),
+        (false, false) => {
+            particle_pass::<false, false>(model, particles, rotation, heat, listed, parallel)
+        }
+        (false, true) => {
+            particle_pass::<false, true>(model, particles, rotation, heat, listed, parallel)
+        }
+        (true, false) => {
+            particle_pass::<true, false>(model, particles, rotation, heat, listed, parallel)
+        }
+        (true, true) => {
+            particle_pass::<true, true>(model, particles, rotation, heat, listed, parallel)
+        }
     };
-    pairs.merge(own)
+    let mut summary = pairs.merge(own);
+    summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
+    summary
+}
+
+/// Sets each particle's force to its weight `m g` \[N\], the force the contacts add to.
+fn set_weights(forces: &mut [DVec3], mass: &[f64], gravity: DVec3) {
+    for (force, &mass) in forces.iter_mut().zip(mass) {
+        *force = mass * gravity;
+    }
+}
+
+/// The particles that may touch a wall before the neighbour list's next rebuild: those whose
+/// overlap with some wall at the list's reference positions exceeds −skin. Between rebuilds no
+/// particle is more than half the skin from its reference position (the rebuild test of
+/// `integrate::kick_drift`), so no other particle can touch a wall, nor hold a wall spring
+/// (which only a contact of the last step leaves). Without heat the particle pass visits these
+/// alone: on the LIGGGHTS bed about a tenth of the particles, where the others would only have
+/// been found apart (their weight is set by the drift).
+#[derive(Debug, Clone, Default)]
+pub struct WallCandidates {
+    /// The [`NeighborList::generation`] the candidates were taken for (0: none).
+    generation: u64,
+    /// Ascending particle indices.
+    particles: Vec<u32>,
+}
+
+impl WallCandidates {
+    /// Takes the candidates anew if they belong to another build of `list` than its current.
+    fn refresh(&mut self, model: &Model, list: &NeighborList, radius: &[f64]) {
+        let reference = list.reference_positions();
+        if self.generation == list.generation() && self.generation != 0 {
+            return;
+        }
+        if reference.len() != radius.len() {
+            // No list of these particles, so no bound on their travel: every one may touch.
+            self.particles = (0..radius.len())
+                .map(|k| u32::try_from(k).expect("fewer than 2^32 particles"))
+                .collect();
+            self.generation = 0;
+            return;
+        }
+        // The whole skin, twice the bound, so that no rounding matters.
+        let reach = -list.skin();
+        self.particles.clear();
+        self.particles.extend(
+            (0..radius.len())
+                .filter(|&k| {
+                    model.walls.iter().any(|wall| {
+                        radius[k] - (reference[k] - wall.point).dot(wall.normal) > reach
+                    })
+                })
+                .map(|k| u32::try_from(k).expect("fewer than 2^32 particles")),
+        );
+        self.generation = list.generation();
+    }
+
+    /// The candidates, ascending.
+    #[must_use]
+    pub fn particles(&self) -> &[u32] {
+        &self.particles
+    }
 }
 
 /// Sets every element to `value`.
@@ -892,16 +974,19 @@ fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     batch.kept_count = 0;
 }
 
-/// The particle pass: gravity, the wall contacts (normal, and with rotation tangential and
-/// rolling), boundary heat and laser power, and the per-step checks. Each particle writes only
-/// its own entries. Compiled for one combination of optional physics: rotation with the wall
-/// springs (`ROTATION`) and conduction (`HEAT`); what it leaves out is ignored even if given.
+/// The particle pass: the wall contacts (normal, and with rotation tangential and rolling),
+/// boundary heat and laser power, and the wall overlaps for the guard, over every particle or
+/// the `listed` ones (ascending; they must include every particle that touches a wall or holds a
+/// wall spring). Each particle writes only its own entries. Compiled for one combination of
+/// optional physics: rotation with the wall springs (`ROTATION`) and conduction (`HEAT`); what
+/// it leaves out is ignored even if given.
 #[allow(clippy::too_many_lines)]
 fn particle_pass<const ROTATION: bool, const HEAT: bool>(
     model: &Model,
     particles: &mut Particles,
     rotation: Option<&mut Rotation>,
     heat: Option<PassHeat<'_>>,
+    listed: Option<&[u32]>,
     parallel: bool,
 ) -> ForceSummary {
     let mut forces = std::mem::take(&mut particles.force);
@@ -945,18 +1030,6 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
         boundary_flow: Scatter::new(h.boundary_flow),
         total_conductance: Scatter::new(h.total_conductance),
     });
-    // Adds a particle's own force to what its pairs gave it, and notes the lowest particle
-    // whose total is not finite (a chunk's particles come in ascending order: its first).
-    let add_force = |summary: &mut ForceSummary, particle: Member<'_>, force: DVec3| {
-        let mut total = DVec3::ZERO;
-        force_out.update(particle, |f| {
-            *f += force;
-            total = *f;
-        });
-        if !total.is_finite() && summary.non_finite_force.is_none() {
-            summary.non_finite_force = Some(particle.index());
-        }
-    };
     let visit = |summary: &mut ForceSummary,
                  springs: &mut Option<&mut Chunk>,
                  window: &Window<'_>| {
@@ -969,22 +1042,19 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
         let heat = heat.as_ref().filter(|_| HEAT);
         let particle = window.owner();
         let k = particle.index();
-        let gravity = state.mass[k] * model.gravity;
-        // Most particles touch no wall and hold no wall spring (on the LIGGGHTS bed 93 %):
-        // without heat, gravity is all they get. (The full path below would add zeros to their
-        // lost energy and torque, which start at +0 and stay so, and observe a zero overlap:
-        // none of it changes a bit.)
+        // Most candidates touch no wall and hold no wall spring: without heat, they get
+        // nothing. (The full path below would add zeros to their force, lost energy and torque,
+        // which changes no bit of a finite sum, and observe a zero overlap.)
         if !HEAT
             && !(0..model.walls.len()).any(|w| wall_overlap(model, state, k, w) > 0.0)
             && !springs
                 .as_deref_mut()
                 .is_some_and(|chunk| chunk.holds_any(k))
         {
-            add_force(summary, particle, gravity);
             return;
         }
         let mut max_overlap: f64 = 0.0;
-        let mut force = gravity;
+        let mut force = DVec3::ZERO;
         let mut torque_k = DVec3::ZERO;
         let mut lost = 0.0;
         for w in 0..model.walls.len() {
@@ -1042,7 +1112,7 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
                 chunk.keep(k, w, step.spring);
             }
         }
-        add_force(summary, particle, force);
+        force_out.update(particle, |f| *f += force);
         lost_out.update(particle, |l| *l += lost);
         if let Some(t) = torque {
             t.update(particle, |t| *t += torque_k);
@@ -1071,6 +1141,7 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
     let summary = scatter::for_each_particle(
         count,
         PARTICLES_PER_CHUNK,
+        listed,
         &mut chunks,
         parallel,
         ForceSummary::default(),
@@ -1117,8 +1188,6 @@ pub struct ForceSummary {
     pub max_overlap_ratio: f64,
     /// The particle (index) with that smaller radius.
     pub max_overlap_particle: usize,
-    /// The lowest particle index whose total force is NaN or infinite.
-    pub non_finite_force: Option<usize>,
 }
 
 impl ForceSummary {
@@ -1139,10 +1208,6 @@ impl ForceSummary {
     fn merge(mut self, other: Self) -> Self {
         self.observe_overlap(other.max_overlap_ratio, other.max_overlap_particle);
         self.max_heat_rate = self.max_heat_rate.max(other.max_heat_rate);
-        self.non_finite_force = match (self.non_finite_force, other.non_finite_force) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        };
         self
     }
 }
@@ -1167,9 +1232,9 @@ mod tests {
 
     /// A sphere off the plate that still holds the spring of its last contact with it takes
     /// the particle pass's full path: the spring's energy is lost and the spring is gone. The
-    /// others get gravity alone.
+    /// forces stay at the weights the drift set.
     #[test]
-    fn a_sphere_off_the_wall_releases_its_spring_and_the_others_get_gravity() {
+    fn a_sphere_off_the_wall_releases_its_spring_and_the_forces_stay_at_the_weights() {
         let text = r#"
 [scene]
 version = 1
@@ -1207,14 +1272,123 @@ material = "m"
         };
         rotation.wall_springs =
             crate::wall_history::WallSprings::from_entries(particles.len(), [(0, 0, held)]);
-        let summary =
-            particle_pass::<true, false>(&model, &mut particles, Some(&mut rotation), None, false);
+        set_weights(&mut particles.force, &particles.mass, model.gravity);
+        for listed in [None, Some([0, 1].as_slice())] {
+            let summary = particle_pass::<true, false>(
+                &model,
+                &mut particles,
+                Some(&mut rotation),
+                None,
+                listed,
+                false,
+            );
+            assert_eq!(summary.max_overlap_ratio, 0.0);
+        }
         assert_eq!(particles.dissipated, [held.spring_energy, 0.0]);
         assert_eq!(rotation.wall_springs.entries().count(), 0);
         for k in 0..2 {
             assert_eq!(particles.force[k], particles.mass[k] * model.gravity);
             assert_eq!(rotation.torque[k], DVec3::ZERO);
         }
-        assert_eq!(summary.max_overlap_ratio, 0.0);
+    }
+
+    /// The wall candidates are the particles within the skin of a wall at the list's reference
+    /// positions (here the skin is 10 µm and the radius 20 µm), taken anew for a new build
+    /// only; and the particle pass over them gives bitwise what it gives over every particle.
+    #[test]
+    fn the_wall_candidates_are_the_particles_within_the_skin_of_a_wall() {
+        let mut text = String::from(
+            r#"
+[scene]
+version = 1
+[simulation]
+dt_s = 1e-8
+duration_s = 1e-6
+gravity_m_s2 = [0.0, 0.0, -9.81]
+skin_m = 1e-5
+[materials.m]
+density_kg_m3 = 7950
+youngs_modulus_pa = 1e9
+poisson_ratio = 0.3
+[contact]
+model = "hertz"
+restitution = 0.5
+friction_coefficient = 0.5
+[[walls]]
+point_m = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+material = "m"
+[[walls]]
+point_m = [1e-3, 0.0, 0.0]
+normal = [-1.0, 0.0, 0.0]
+material = "m"
+"#,
+        );
+        // Heights of the centres above the plate: touching, within the skin (gap 9.9 µm),
+        // beyond it (gap 10.1 µm), far; the last one far from the plate but near the side wall.
+        let places = [
+            (1e-4, 1.9e-5),
+            (2e-4, 2.99e-5),
+            (3e-4, 3.01e-5),
+            (4e-4, 1e-4),
+            (1e-3 - 2.5e-5, 1e-4),
+        ];
+        for (x, z) in places {
+            text += &format!(
+                "[[particles]]\nposition_m = [{x:e}, 0.0, {z:e}]\nradius_m = 2e-5\nmaterial = \"m\"\n"
+            );
+        }
+        let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
+        let (model, particles) = Model::build(&scene);
+        let mut list = NeighborList::new(model.skin, None);
+        list.build(&particles.position, &particles.radius);
+        let mut candidates = WallCandidates::default();
+        candidates.refresh(&model, &list, &particles.radius);
+        let ids = |c: &WallCandidates| -> Vec<u64> {
+            c.particles()
+                .iter()
+                .map(|&k| particles.id[k as usize])
+                .collect()
+        };
+        let expected: Vec<u64> = [0, 1, 4].iter().map(|&i| particles.id[i]).collect();
+        let mut found = ids(&candidates);
+        found.sort_unstable();
+        let mut expected_sorted = expected.clone();
+        expected_sorted.sort_unstable();
+        assert_eq!(found, expected_sorted);
+        // The same build: kept, even for other radii; a new build: taken anew.
+        candidates.refresh(&model, &list, &[2e-5, 2e-5, 1e-3, 2e-5, 2e-5]);
+        assert_eq!(candidates.particles().len(), 3);
+        list.build(&particles.position, &particles.radius);
+        candidates.refresh(&model, &list, &[2e-5, 2e-5, 1e-3, 2e-5, 2e-5]);
+        assert_eq!(candidates.particles().len(), 4);
+        // The pass over the candidates and over every particle.
+        let pass = |listed: Option<&[u32]>| {
+            let mut particles = particles.clone();
+            let mut rotation = Rotation::new(particles.len(), model.walls.len());
+            set_weights(&mut particles.force, &particles.mass, model.gravity);
+            let summary = particle_pass::<true, false>(
+                &model,
+                &mut particles,
+                Some(&mut rotation),
+                None,
+                listed,
+                false,
+            );
+            (
+                particles.force,
+                particles.dissipated,
+                rotation.torque,
+                summary,
+            )
+        };
+        candidates.refresh(&model, &NeighborList::default(), &particles.radius);
+        assert_eq!(candidates.particles().len(), 5, "no list: every particle");
+        list.build(&particles.position, &particles.radius);
+        candidates.refresh(&model, &list, &particles.radius);
+        let (all, listed) = (pass(None), pass(Some(candidates.particles())));
+        assert_eq!(format!("{all:?}"), format!("{listed:?}"));
+        // The touching sphere got the plate's push.
+        assert!(all.0.iter().any(|f| f.z > 0.0));
     }
 }

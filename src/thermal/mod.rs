@@ -495,6 +495,28 @@ pub fn max_stiffness(
     heat_flows(model, walls, particles, list, state)
 }
 
+/// Largest `G_i / C_i` [1/s] (M.49) of the total conductances `G_i` [W/K] and heat capacities
+/// `C_i` [J/K] as they stand (0 without particles).
+#[must_use]
+pub fn max_heat_rate(total_conductance: &[f64], heat_capacity: &[f64], parallel: bool) -> f64 {
+    let items: Vec<_> = total_conductance
+        .chunks(PARTICLES_PER_ITEM)
+        .zip(heat_capacity.chunks(PARTICLES_PER_ITEM))
+        .collect();
+    crate::team::fold_items(
+        parallel,
+        items,
+        || 0.0,
+        |worst: f64, _, (conductance, capacity)| {
+            conductance
+                .iter()
+                .zip(capacity)
+                .fold(worst, |worst, (g, c)| worst.max(g / c))
+        },
+        f64::max,
+    )
+}
+
 /// A chunk's laser and boundary energy accumulators, kept with a laser or boundary exchange.
 type Accumulators<'a> = Option<(&'a mut [f64], &'a mut [f64])>;
 
