@@ -1216,6 +1216,44 @@ impl ForceSummary {
 mod tests {
     use super::*;
 
+    /// The particle pass with rotation and without heat, on one thread.
+    fn wall_pass(
+        model: &Model,
+        particles: &mut Particles,
+        rotation: &mut Rotation,
+        listed: Option<&[u32]>,
+    ) -> ForceSummary {
+        particle_pass::<true, false>(model, particles, Some(rotation), None, listed, false)
+    }
+
+    /// A scene of 20 µm steel-like spheres (given after it) on a plate at z = 0, with friction;
+    /// `simulation` adds keys to `[simulation]`.
+    fn plate_scene(simulation: &str) -> String {
+        format!(
+            r#"
+[scene]
+version = 1
+[simulation]
+dt_s = 1e-8
+duration_s = 1e-6
+gravity_m_s2 = [0.0, 0.0, -9.81]
+{simulation}
+[materials.m]
+density_kg_m3 = 7950
+youngs_modulus_pa = 1e9
+poisson_ratio = 0.3
+[contact]
+model = "hertz"
+restitution = 0.5
+friction_coefficient = 0.5
+[[walls]]
+point_m = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+material = "m"
+"#
+        )
+    }
+
     /// The batch buffers' reuse rests on `recycle` keeping the allocation: a change of the
     /// standard library that lost it would cost an allocation per slab visit, which this test
     /// would show.
@@ -1235,25 +1273,8 @@ mod tests {
     /// forces stay at the weights the drift set.
     #[test]
     fn a_sphere_off_the_wall_releases_its_spring_and_the_forces_stay_at_the_weights() {
-        let text = r#"
-[scene]
-version = 1
-[simulation]
-dt_s = 1e-8
-duration_s = 1e-6
-gravity_m_s2 = [0.0, 0.0, -9.81]
-[materials.m]
-density_kg_m3 = 7950
-youngs_modulus_pa = 1e9
-poisson_ratio = 0.3
-[contact]
-model = "hertz"
-restitution = 0.5
-friction_coefficient = 0.5
-[[walls]]
-point_m = [0.0, 0.0, 0.0]
-normal = [0.0, 0.0, 1.0]
-material = "m"
+        let text = plate_scene("")
+            + r#"
 [[particles]]
 position_m = [0.0, 0.0, 2.1e-5]
 radius_m = 2e-5
@@ -1263,7 +1284,7 @@ position_m = [1e-4, 0.0, 2.1e-5]
 radius_m = 2e-5
 material = "m"
 "#;
-        let scene = crate::scene::Scene::from_toml(text).expect("the test's scene");
+        let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
         let (model, mut particles) = Model::build(&scene);
         let mut rotation = Rotation::new(particles.len(), model.walls.len());
         let held = TangentialSpring {
@@ -1274,14 +1295,7 @@ material = "m"
             crate::wall_history::WallSprings::from_entries(particles.len(), [(0, 0, held)]);
         set_weights(&mut particles.force, &particles.mass, model.gravity);
         for listed in [None, Some([0, 1].as_slice())] {
-            let summary = particle_pass::<true, false>(
-                &model,
-                &mut particles,
-                Some(&mut rotation),
-                None,
-                listed,
-                false,
-            );
+            let summary = wall_pass(&model, &mut particles, &mut rotation, listed);
             assert_eq!(summary.max_overlap_ratio, 0.0);
         }
         assert_eq!(particles.dissipated, [held.spring_energy, 0.0]);
@@ -1297,33 +1311,13 @@ material = "m"
     /// only; and the particle pass over them gives bitwise what it gives over every particle.
     #[test]
     fn the_wall_candidates_are_the_particles_within_the_skin_of_a_wall() {
-        let mut text = String::from(
-            r#"
-[scene]
-version = 1
-[simulation]
-dt_s = 1e-8
-duration_s = 1e-6
-gravity_m_s2 = [0.0, 0.0, -9.81]
-skin_m = 1e-5
-[materials.m]
-density_kg_m3 = 7950
-youngs_modulus_pa = 1e9
-poisson_ratio = 0.3
-[contact]
-model = "hertz"
-restitution = 0.5
-friction_coefficient = 0.5
-[[walls]]
-point_m = [0.0, 0.0, 0.0]
-normal = [0.0, 0.0, 1.0]
-material = "m"
+        let mut text = plate_scene("skin_m = 1e-5")
+            + r#"
 [[walls]]
 point_m = [1e-3, 0.0, 0.0]
 normal = [-1.0, 0.0, 0.0]
 material = "m"
-"#,
-        );
+"#;
         // Heights of the centres above the plate: touching, within the skin (gap 9.9 µm),
         // beyond it (gap 10.1 µm), far; the last one far from the plate but near the side wall.
         let places = [
@@ -1367,14 +1361,7 @@ material = "m"
             let mut particles = particles.clone();
             let mut rotation = Rotation::new(particles.len(), model.walls.len());
             set_weights(&mut particles.force, &particles.mass, model.gravity);
-            let summary = particle_pass::<true, false>(
-                &model,
-                &mut particles,
-                Some(&mut rotation),
-                None,
-                listed,
-                false,
-            );
+            let summary = wall_pass(&model, &mut particles, &mut rotation, listed);
             (
                 particles.force,
                 particles.dissipated,
