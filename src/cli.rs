@@ -453,11 +453,12 @@ fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
         particle_steps / wall.max(1e-9) / threads as f64
     );
     say!(
-        "  contacts: {} particle-particle, {} particle-wall; bonds: {}; neighbour-list builds: {}; near-list refreshes: {}",
+        "  contacts: {} particle-particle, {} particle-wall; bonds: {}; neighbour-list builds: {} (displacements measured at {} steps); near-list refreshes: {}",
         d.contacts,
         d.wall_contacts,
         d.bonds,
         d.neighbor_builds,
+        d.displacement_checks,
         d.near_refreshes
     );
     if d.removed_particles > 0 {

@@ -316,15 +316,41 @@ impl NeighborList {
         }
     }
 
-    /// The rebuild test of one particle: whether `x`, particle `k`'s position, lies more than
-    /// half the skin from its position at the last build (true for a particle the last build did
-    /// not have). The integrator takes it with the drift (`integrate::kick_drift`).
+    /// The square of the largest distance \[m²\] of a particle at `positions` from its position
+    /// at the last build (infinite if the build had another number of particles): the rebuild
+    /// test measures it only when a bound on it comes near half the skin
+    /// ([`NeighborList::moved_too_far`]), so that the drift of every step need not stream the
+    /// reference positions. The largest of the squares is exact in any order, so the thread
+    /// count does not change it.
     #[must_use]
-    #[inline]
-    pub fn moved_too_far(&self, k: usize, x: DVec3) -> bool {
-        self.reference_positions
-            .get(k)
-            .is_none_or(|x0| (x - *x0).length_squared() > 0.25 * self.skin * self.skin)
+    pub fn largest_displacement_squared(&self, positions: &[DVec3]) -> f64 {
+        if self.is_stale(positions.len()) {
+            return f64::INFINITY;
+        }
+        let squared = |(x, x0): (&DVec3, &DVec3)| (*x - *x0).length_squared();
+        if crate::worth_parallel(positions.len()) {
+            positions
+                .par_iter()
+                .zip(&self.reference_positions)
+                .map(squared)
+                .reduce(|| 0.0, f64::max)
+        } else {
+            positions
+                .iter()
+                .zip(&self.reference_positions)
+                .map(squared)
+                .fold(0.0, f64::max)
+        }
+    }
+
+    /// The rebuild test: whether a particle lies more than half the skin from its position at
+    /// the last build, given the square of the largest such distance \[m²\]
+    /// ([`NeighborList::largest_displacement_squared`]). Two particles that both moved less
+    /// than half the skin closed their gap by less than the skin, so every pair that can touch
+    /// is still in the list (its invariant).
+    #[must_use]
+    pub fn moved_too_far(&self, largest_displacement_squared: f64) -> bool {
+        largest_displacement_squared > 0.25 * self.skin * self.skin
     }
 
     /// Whether the last build had a different number of particles than `count` (or there was
