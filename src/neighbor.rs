@@ -624,7 +624,15 @@ impl NeighborList {
 
     /// Every pair as `(slot, owner, partner)`, in slot order.
     pub fn pairs(&self) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
-        (0..self.offsets.len().saturating_sub(1)).flat_map(move |k| {
+        self.pairs_of(0..self.offsets.len().saturating_sub(1))
+    }
+
+    /// The pairs of the owners `owners` as `(slot, owner, partner)`, in slot order.
+    pub fn pairs_of(
+        &self,
+        owners: Range<usize>,
+    ) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
+        owners.flat_map(move |k| {
             self.slots(k)
                 .map(move |p| (p, k, self.partners[p] as usize))
         })

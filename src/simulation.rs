@@ -15,6 +15,8 @@
 //!    of the next step's pair pass reads them.
 //! 7. Second half kick (M.32), which reports the first non-finite force.
 
+use std::ops::Range;
+
 use crate::contact::tangential::TangentialSpring;
 use crate::contact::{BondState, NormalParams, hertz, rolling, tangential};
 use crate::forces::{self, ForceSummary};
@@ -24,6 +26,7 @@ use crate::model::Model;
 use crate::neighbor::{HeldPairs, NearPairs, NeighborList};
 use crate::pair_history::TangentialHistories;
 use crate::particles::{Particles, Rotation};
+use crate::team::PARTICLES_PER_ITEM;
 use crate::thermal::{self, ThermalState};
 use crate::wall_history::WallSprings;
 
@@ -753,11 +756,21 @@ impl Simulation {
     /// Every touching pair as `(slot, owner, partner, unit normal owner → partner, overlap [m])`,
     /// in slot order.
     fn touching_pairs(&self) -> impl Iterator<Item = (usize, usize, usize, glam::DVec3, f64)> + '_ {
+        self.touching_pairs_of(0..self.particles.len())
+    }
+
+    /// The touching pairs of the owners `owners`, as [`Simulation::touching_pairs`] gives them.
+    fn touching_pairs_of(
+        &self,
+        owners: Range<usize>,
+    ) -> impl Iterator<Item = (usize, usize, usize, glam::DVec3, f64)> + '_ {
         let periodic = self.model.periodic.as_ref();
-        self.neighbors.pairs().filter_map(move |(p, a, b)| {
-            let (normal, overlap) = forces::pair_geometry(periodic, &self.particles, a, b);
-            (overlap > 0.0).then_some((p, a, b, normal, overlap))
-        })
+        self.neighbors
+            .pairs_of(owners)
+            .filter_map(move |(p, a, b)| {
+                let (normal, overlap) = forces::pair_geometry(periodic, &self.particles, a, b);
+                (overlap > 0.0).then_some((p, a, b, normal, overlap))
+            })
     }
 
     /// Bonded pairs as (index a, index b, overlap \[m\], normal force \[N\], positive when
@@ -1099,22 +1112,34 @@ impl Simulation {
             ..Diagnostics::default()
         };
         let mut tightest = f64::INFINITY;
-        self.for_each_contact(|contact| {
-            if contact.second.is_some() {
-                d.contacts += 1;
-            } else {
-                d.wall_contacts += 1;
-            }
-            d.max_overlap = d.max_overlap.max(contact.overlap);
-            d.max_overlap_ratio = d
-                .max_overlap_ratio
-                .max(contact.overlap / contact.smaller_radius);
-            if contact.bonded && contact.params.bond.is_some() {
-                d.bonds += 1;
-            }
-            d.elastic_energy += contact.elastic_energy();
-            tightest = tightest.min(self.stability_limit_of(&contact));
-        });
+        let partials = self.fold_contacts(
+            || (Diagnostics::default(), f64::INFINITY),
+            |(d, tightest), contact| {
+                if contact.second.is_some() {
+                    d.contacts += 1;
+                } else {
+                    d.wall_contacts += 1;
+                }
+                d.max_overlap = d.max_overlap.max(contact.overlap);
+                d.max_overlap_ratio = d
+                    .max_overlap_ratio
+                    .max(contact.overlap / contact.smaller_radius);
+                if contact.bonded && contact.params.bond.is_some() {
+                    d.bonds += 1;
+                }
+                d.elastic_energy += contact.elastic_energy();
+                *tightest = tightest.min(self.stability_limit_of(&contact));
+            },
+        );
+        for (chunk, chunk_tightest) in partials {
+            d.contacts += chunk.contacts;
+            d.wall_contacts += chunk.wall_contacts;
+            d.max_overlap = d.max_overlap.max(chunk.max_overlap);
+            d.max_overlap_ratio = d.max_overlap_ratio.max(chunk.max_overlap_ratio);
+            d.bonds += chunk.bonds;
+            d.elastic_energy += chunk.elastic_energy;
+            tightest = tightest.min(chunk_tightest);
+        }
         if let Some(rotation) = &self.rotation {
             // (M.63): rotation is kinetic energy, the tangential springs store elastic energy.
             d.kinetic_energy += rotation.kinetic_energy(p);
@@ -1314,13 +1339,54 @@ impl Simulation {
         sticking * integrate::stability_limit(stiffness, contact.effective_mass, damping_ratio)
     }
 
-    /// Visits every touching contact of the current state: the particle pairs with δ > 0 in
-    /// the neighbour list's order, then every particle's wall contacts (a wall is the limit
-    /// r, m → ∞: r* = r, m* = m). The measurements of the state (diagnostics, stability limit)
-    /// all walk the contacts this way, so they sum in the same order.
+    /// Visits every touching contact of the current state, particles' chunk by chunk
+    /// ([`PARTICLES_PER_ITEM`] consecutive particles): the chunk's pairs with δ > 0 in the
+    /// neighbour list's order (the pairs it owns), then its particles' wall contacts (a wall is
+    /// the limit r, m → ∞: r* = r, m* = m). The measurements of the state (diagnostics,
+    /// stability limit) all walk the contacts in this order, serially or
+    /// ([`Simulation::fold_contacts`]) chunk by chunk on the team.
     fn for_each_contact(&self, mut visit: impl FnMut(Contact<'_>)) {
+        for first in (0..self.particles.len()).step_by(PARTICLES_PER_ITEM) {
+            self.contacts_of_chunk(first, &mut visit);
+        }
+    }
+
+    /// The partials `visit` folds from `identity()` over each chunk's contacts (in the order of
+    /// [`Simulation::for_each_contact`]), in chunk order: the chunks run on the thread team when
+    /// the state is large, and the caller merges the partials in this order, so the thread
+    /// count does not change a sum.
+    fn fold_contacts<R: Send>(
+        &self,
+        identity: impl Fn() -> R + Sync,
+        visit: impl Fn(&mut R, Contact<'_>) + Sync,
+    ) -> Vec<R> {
+        let count = self.particles.len();
+        let chunks: Vec<usize> = (0..count).step_by(PARTICLES_PER_ITEM).collect();
+        let mut partials = crate::team::fold_items(
+            crate::worth_parallel(count),
+            chunks,
+            Vec::new,
+            |mut partials, c, first| {
+                let mut partial = identity();
+                self.contacts_of_chunk(first, |contact| visit(&mut partial, contact));
+                partials.push((c, partial));
+                partials
+            },
+            |mut a, b| {
+                a.extend(b);
+                a
+            },
+        );
+        // The team's members may take each other's chunks: the order is restored here.
+        partials.sort_unstable_by_key(|(c, _)| *c);
+        partials.into_iter().map(|(_, partial)| partial).collect()
+    }
+
+    /// The contacts of the chunk of particles from `first` (see [`Simulation::for_each_contact`]).
+    fn contacts_of_chunk(&self, first: usize, mut visit: impl FnMut(Contact<'_>)) {
         let p = &self.particles;
-        for (slot, a, b, _, overlap) in self.touching_pairs() {
+        let chunk = first..(first + PARTICLES_PER_ITEM).min(p.len());
+        for (slot, a, b, _, overlap) in self.touching_pairs_of(chunk.clone()) {
             visit(Contact {
                 first: a,
                 second: Some(b),
@@ -1333,7 +1399,7 @@ impl Simulation {
                 bonded: self.slot_bond_state(slot) == BondState::Bonded,
             });
         }
-        for k in 0..p.len() {
+        for k in chunk {
             for w in 0..self.model.walls.len() {
                 let overlap = forces::wall_overlap(&self.model, p, k, w);
                 if overlap > 0.0 {

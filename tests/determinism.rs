@@ -80,6 +80,26 @@ fn friction_and_rotation_are_bitwise_identical_on_one_and_two_threads() {
     );
 }
 
+/// The measurements of a state (contacts, elastic energy, stability limit) walk its contacts
+/// in chunks of particles that the thread team shares, and sum the chunks in order: the same
+/// bits on any number of threads. The LIGGGHTS bed's 19,200 spheres make 19 chunks.
+#[test]
+fn diagnostics_of_a_state_are_bitwise_the_same_on_any_number_of_threads() {
+    let sim = common::liggghts_scene("liggghts_bed_20k.toml");
+    let measured_on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool")
+            .install(|| sim.diagnostics())
+    };
+    let one = measured_on(1);
+    assert!(one.contacts > 10_000 && one.elastic_energy > 0.0, "{one:?}");
+    for threads in [2, 3] {
+        assert_eq!(measured_on(threads), one, "{threads} threads");
+    }
+}
+
 #[test]
 fn friction_runs_with_different_skins_agree_to_round_off() {
     // The skin changes how often the list is rebuilt and the particles re-sorted, so the forces are
