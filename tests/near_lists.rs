@@ -70,17 +70,22 @@ fn same_with_and_without_rebuild_bound(with: Simulation, steps: u64) -> Simulati
     with
 }
 
-/// A pair that starts beyond the near skin (gap 100 µm, near skin 25 µm) and closes it at
-/// 2 m/s: the refresh must come before the contact, which the run without near lists finds.
-#[test]
-fn a_fast_pair_from_beyond_the_near_skin_collides_at_the_same_step() {
+/// Two spheres 100 µm apart closing at 2 m/s, run until they have met and separated.
+fn fast_pair() -> Simulation {
     let speed = 2.0;
     let m_star = sphere_mass(2000.0) / 2.0;
     let dt = hertz::contact_time(m_star, E_STAR, R_STAR, speed) / 200.0;
     let gap = 1e-4;
     // The gap closes after gap / speed; the contact lasts well under that again.
     let duration = 2.0 * gap / speed;
-    let sim = two_spheres_at(2000.0, 2.0 * RADIUS + gap, speed, 0.3, None, dt, duration);
+    two_spheres_at(2000.0, 2.0 * RADIUS + gap, speed, 0.3, None, dt, duration)
+}
+
+/// A pair that starts beyond the near skin (gap 100 µm, near skin 25 µm) and closes it at
+/// 2 m/s: the refresh must come before the contact, which the run without near lists finds.
+#[test]
+fn a_fast_pair_from_beyond_the_near_skin_collides_at_the_same_step() {
+    let sim = fast_pair();
     let steps = sim.model.steps;
     let sim = same_with_and_without_near_lists(sim, steps);
     // The spheres met and separated: they now move apart.
@@ -94,13 +99,19 @@ fn a_fast_pair_from_beyond_the_near_skin_collides_at_the_same_step() {
     );
 }
 
-/// A pile falling onto a plate under friction and rolling resistance: springs that hold and
-/// are released, contacts that open and close at up to about 1 m/s.
-#[test]
-fn a_falling_frictional_pile_is_the_same_with_and_without_near_lists() {
+/// The first 20 ms of `scenes/friction_pile.toml`: a pile falling onto a plate under friction
+/// and rolling resistance.
+fn falling_pile() -> Simulation {
     let text =
         common::scene_text("friction_pile.toml").replace("duration_s = 0.4", "duration_s = 0.02");
-    let sim = common::simulation(&text);
+    common::simulation(&text)
+}
+
+/// The falling pile: springs that hold and are released, contacts that open and close at up
+/// to about 1 m/s.
+#[test]
+fn a_falling_frictional_pile_is_the_same_with_and_without_near_lists() {
+    let sim = falling_pile();
     let steps = sim.model.steps;
     same_with_and_without_near_lists(sim, steps);
 }
@@ -127,14 +138,12 @@ fn a_periodic_bed_is_the_same_with_and_without_near_lists_and_rarely_refreshes()
     assert!(refreshes <= 10, "{refreshes} refreshes in {steps} steps");
 }
 
-/// The falling frictional pile, fast enough to rebuild its list every few dozen steps: the
+/// The falling pile, fast enough to rebuild its list about a dozen times in 4000 steps: the
 /// builds come at the same steps when the displacements are measured only near the bound, and
 /// they are measured at far fewer steps than there are.
 #[test]
 fn a_falling_pile_rebuilds_at_the_same_steps_with_and_without_the_rebuild_bound() {
-    let text =
-        common::scene_text("friction_pile.toml").replace("duration_s = 0.4", "duration_s = 0.02");
-    let sim = common::simulation(&text);
+    let sim = falling_pile();
     let steps = sim.model.steps;
     let builds_before = sim.diagnostics().neighbor_builds;
     let sim = same_with_and_without_rebuild_bound(sim, steps);
@@ -155,19 +164,7 @@ fn a_falling_pile_rebuilds_at_the_same_steps_with_and_without_the_rebuild_bound(
 /// measures at every drift finds.
 #[test]
 fn a_fast_pair_rebuilds_at_the_same_steps_with_and_without_the_rebuild_bound() {
-    let speed = 2.0;
-    let m_star = sphere_mass(2000.0) / 2.0;
-    let dt = hertz::contact_time(m_star, E_STAR, R_STAR, speed) / 200.0;
-    let gap = 1e-4;
-    let sim = two_spheres_at(
-        2000.0,
-        2.0 * RADIUS + gap,
-        speed,
-        0.3,
-        None,
-        dt,
-        2.0 * gap / speed,
-    );
+    let sim = fast_pair();
     let steps = sim.model.steps;
     let sim = same_with_and_without_rebuild_bound(sim, steps);
     assert!(approach_speed(&sim) < 0.0, "{}", approach_speed(&sim));
