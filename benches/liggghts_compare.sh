@@ -69,8 +69,9 @@ for rep in $(seq 1 "$REPS"); do
               --overwrite | awk '/particle-steps\/s/{print $2}')
           echo "am-sim $size $heat $t $(python3 -c "print($speed/$t)")" >> "$results"
         }
-        # Who goes first alternates from repetition to repetition: on a shared host the run
-        # after a 2-process run can be the slower one.
+        # Who goes first alternates from repetition to repetition, so that neither program
+        # always runs right after the other (on this shared host 2-thread speeds scatter by
+        # about ±8 % from one minute to the next: take medians of several repetitions).
         if (( rep % 2 )); then run_liggghts; run_am_sim; else run_am_sim; run_liggghts; fi
         echo "rep $rep, bed $size, heat $heat, $t thread(s): $(tail -2 "$results" | tr '\n' ' ')"
       done
