@@ -327,20 +327,11 @@ impl NeighborList {
         if self.is_stale(positions.len()) {
             return f64::INFINITY;
         }
-        let squared = |(x, x0): (&DVec3, &DVec3)| (*x - *x0).length_squared();
-        if crate::worth_parallel(positions.len()) {
-            positions
-                .par_iter()
-                .zip(&self.reference_positions)
-                .map(squared)
-                .reduce(|| 0.0, f64::max)
-        } else {
-            positions
-                .iter()
-                .zip(&self.reference_positions)
-                .map(squared)
-                .fold(0.0, f64::max)
-        }
+        crate::team::largest(
+            crate::worth_parallel(positions.len()),
+            (positions, &self.reference_positions),
+            |x, x0| (*x - *x0).length_squared(),
+        )
     }
 
     /// The rebuild test: whether a particle lies more than half the skin from its position at

@@ -242,6 +242,14 @@ pub struct Diagnostics {
     pub thermal: Option<ThermalDiagnostics>,
 }
 
+/// Whether a bound on how far particles moved, `travel` \[m\] (dt |v|max summed over the drifts
+/// since the bound began), shows them all within `limit` \[m\]: the near lists' refresh test and
+/// the rebuild test's bound. The bound sums the very steps the drifts took; the rounding of the
+/// positions, about 1e-19 m a step, is far below the margin of 1e-6 relative.
+fn travel_within(travel: f64, limit: f64) -> bool {
+    travel < (1.0 - 1e-6) * limit
+}
+
 /// One touching contact of the current state (see `Simulation::for_each_contact`).
 struct Contact<'a> {
     /// The particle (index), or the pair's first particle.
@@ -815,14 +823,12 @@ impl Simulation {
     }
 
     /// The rebuild test ([`NeighborList::moved_too_far`]), measured only when `build_travel`,
-    /// a bound on the largest displacement since the build, comes near half the skin: a settled
-    /// bed then measures it a few times between builds instead of at every drift. The test
-    /// decides as if measured at every step, so the builds come at the same steps. (The bound
-    /// sums dt |v|max exactly as the drifts moved the particles; the rounding of the positions,
-    /// about 1e-19 m a step, is far below the margin of 1e-6 relative.)
+    /// a bound on the largest displacement since the build, comes near half the skin
+    /// ([`travel_within`]): a settled bed then measures it a few times between builds instead
+    /// of at every drift. The test decides as if measured at every step, so the builds come at
+    /// the same steps.
     fn moved_too_far(&mut self) -> bool {
-        let half_skin = 0.5 * self.neighbors.skin();
-        if self.rebuild_bound && self.build_travel < (1.0 - 1e-6) * half_skin {
+        if self.rebuild_bound && travel_within(self.build_travel, 0.5 * self.neighbors.skin()) {
             return false;
         }
         self.displacement_checks += 1;
@@ -908,10 +914,10 @@ impl Simulation {
     }
 
     /// The force pass (steps 4-5). With `[thermal]` it also computes the contact conductances
-    /// and the first substep's heat flows. `cleared`: the forces and torques (and with heat, the
-    /// heat flows and total conductances) are already zero, as the step's opening pass leaves
-    /// them (the pass then skips its own zeroing: one parallel region and one sweep fewer per
-    /// step, three with heat).
+    /// and the first substep's heat flows. `cleared`: the forces are already at the weights and
+    /// the torques (and with heat, the heat flows and total conductances) at zero, as the step's
+    /// opening pass leaves them (the pass then skips setting them: one parallel region and one
+    /// sweep fewer per step, three with heat).
     fn compute_forces(&mut self, cleared: bool) -> ForceSummary {
         let heat = match (&self.model.thermal, &mut self.thermal) {
             (Some(model), Some(state)) => {
@@ -941,11 +947,9 @@ impl Simulation {
         // A pair missing from the near lists had a gap of at least the near skin at their
         // refresh, and each of its particles closed it by at most `near_travel` since: they
         // hold every pair that can touch while 2 × near_travel stays below the near skin.
-        // (The bound sums dt |v|max exactly as the drifts moved the particles; the rounding of
-        // the positions, about 1e-19 m a step, is far below the margin of 1e-6 relative.)
         let refresh_near = !self.near_lists
             || !self.near.belong_to(&self.neighbors)
-            || 2.0 * self.near_travel >= (1.0 - 1e-6) * self.neighbors.near_skin();
+            || !travel_within(2.0 * self.near_travel, self.neighbors.near_skin());
         if refresh_near {
             self.near_travel = 0.0;
             self.near_refreshes += 1;

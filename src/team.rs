@@ -293,6 +293,31 @@ pub fn optional_items<T>(slice: Option<&mut [T]>) -> impl Iterator<Item = Option
     })
 }
 
+/// The largest `value(a[k], b[k])` over the particles `k` (0 without any, and NaN passed over as
+/// `f64::max` does), in items of [`PARTICLES_PER_ITEM`] on the team if `parallel`. A largest
+/// value is exact in any order, so the thread count does not change it.
+pub fn largest<A: Sync, B: Sync>(
+    parallel: bool,
+    (a, b): (&[A], &[B]),
+    value: impl Fn(&A, &B) -> f64 + Sync,
+) -> f64 {
+    let items: Vec<_> = a
+        .chunks(PARTICLES_PER_ITEM)
+        .zip(b.chunks(PARTICLES_PER_ITEM))
+        .collect();
+    fold_items(
+        parallel,
+        items,
+        || 0.0,
+        |largest: f64, _, (a, b)| {
+            a.iter()
+                .zip(b)
+                .fold(largest, |largest, (a, b)| largest.max(value(a, b)))
+        },
+        f64::max,
+    )
+}
+
 /// The items folded in order into one partial, merged into `identity()`.
 fn fold_serially<T, R>(
     items: Vec<T>,
@@ -462,6 +487,32 @@ mod tests {
                 (2048, 5, Some(5), None),
             ]
         );
+    }
+
+    /// The largest value over two slices of several items, on the team as on one thread, is
+    /// the plain maximum: the last particle's in the last item, or the first item's when it is
+    /// made the largest; a NaN is passed over.
+    #[test]
+    fn the_largest_value_over_items_is_the_maximum_on_any_thread_count() {
+        let count = 3 * PARTICLES_PER_ITEM + 7;
+        #[allow(clippy::cast_precision_loss)]
+        let mut a: Vec<f64> = (0..count).map(|k| k as f64).collect();
+        let b = vec![2.0; count];
+        a[5] = f64::NAN;
+        let half = |a: &f64, b: &f64| a / b;
+        #[allow(clippy::cast_precision_loss)]
+        let last = (count - 1) as f64 / 2.0;
+        for parallel in [false, true] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(2)
+                .build()
+                .expect("pool");
+            assert_eq!(pool.install(|| largest(parallel, (&a, &b), half)), last);
+            a[3] = 1e9;
+            assert_eq!(pool.install(|| largest(parallel, (&a, &b), half)), 5e8);
+            a[3] = 3.0;
+        }
+        assert_eq!(largest(true, (&[] as &[f64], &[] as &[f64]), half), 0.0);
     }
 
     #[test]

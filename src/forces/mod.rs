@@ -342,8 +342,8 @@ fn set_weights(forces: &mut [DVec3], mass: &[f64], gravity: DVec3) {
 
 /// The particles that may touch a wall before the neighbour list's next rebuild: those whose
 /// overlap with some wall at the list's reference positions exceeds −skin. Between rebuilds no
-/// particle is more than half the skin from its reference position (the rebuild test of
-/// `integrate::kick_drift`), so no other particle can touch a wall, nor hold a wall spring
+/// particle is more than half the skin from its reference position (the rebuild test,
+/// `NeighborList::moved_too_far`), so no other particle can touch a wall, nor hold a wall spring
 /// (which only a contact of the last step leaves). Without heat the particle pass visits these
 /// alone: on the LIGGGHTS bed about a tenth of the particles, where the others would only have
 /// been found apart (their weight is set by the drift).

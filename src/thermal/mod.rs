@@ -499,22 +499,7 @@ pub fn max_stiffness(
 /// `C_i` [J/K] as they stand (0 without particles).
 #[must_use]
 pub fn max_heat_rate(total_conductance: &[f64], heat_capacity: &[f64], parallel: bool) -> f64 {
-    let items: Vec<_> = total_conductance
-        .chunks(PARTICLES_PER_ITEM)
-        .zip(heat_capacity.chunks(PARTICLES_PER_ITEM))
-        .collect();
-    crate::team::fold_items(
-        parallel,
-        items,
-        || 0.0,
-        |worst: f64, _, (conductance, capacity)| {
-            conductance
-                .iter()
-                .zip(capacity)
-                .fold(worst, |worst, (g, c)| worst.max(g / c))
-        },
-        f64::max,
-    )
+    crate::team::largest(parallel, (total_conductance, heat_capacity), |g, c| g / c)
 }
 
 /// A chunk's laser and boundary energy accumulators, kept with a laser or boundary exchange.
