@@ -1,7 +1,19 @@
-//! Throughput of the pure normal law (`contact::normal_force`) on a fixed batch of pair
-//! kinematics: Hertz-only pairs, and bonded pairs. Run: `cargo bench --bench pair_kernel`.
+//! Throughput of the contact laws, in contacts per second. Run: `cargo bench --bench pair_kernel`.
+//!
+//! - `pair_kernel/hertz`, `pair_kernel/bonded`: the pure normal law (`contact::normal_force`) on
+//!   a fixed batch of pair kinematics, Hertz-only and bonded pairs.
+//! - `contact_kernel/liggghts_bed_{baseline,avx2,avx512}`: the kernel the pair pass runs
+//!   (`forces::KernelBench`: normal and tangential laws over batches of 8 contacts, filled and
+//!   read back as the pass does), with the material and friction of the LIGGGHTS benchmark bed
+//!   (`scenes/liggghts_bed_20k.toml`, r = 15 µm), in each build this processor runs: the x86-64
+//!   baseline (SSE2), AVX2, AVX-512. About 17 % of that bed's step is this
+//!   kernel (docs/performance.md): a change to the laws shows here long before it shows in the
+//!   step's noise.
 
 use am_sim::contact::{BondParams, BondState, NormalParams, PairKinematics, normal_force};
+use am_sim::forces::KernelBench;
+use am_sim::model::Model;
+use am_sim::scene::Scene;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 
@@ -19,7 +31,7 @@ fn batch() -> Vec<PairKinematics> {
         .collect()
 }
 
-fn bench(c: &mut Criterion) {
+fn normal_law(c: &mut Criterion) {
     let pairs = batch();
     let hertz = NormalParams {
         effective_modulus: 1.1e8,
@@ -53,5 +65,24 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+fn contact_kernel(c: &mut Criterion) {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/liggghts_bed_20k.toml");
+    let scene = Scene::load(&path).expect("valid scene");
+    let (model, _) = Model::try_build(&scene).expect("buildable");
+    let mut group = c.benchmark_group("contact_kernel");
+    for build in ["baseline", "avx2", "avx512"] {
+        // A build this processor does not run is left out.
+        let Some(mut bench) = KernelBench::new(model.clone(), 15e-6, 4096, build) else {
+            continue;
+        };
+        group.throughput(Throughput::Elements(bench.len() as u64));
+        group.bench_function(format!("liggghts_bed_{build}"), |b| {
+            b.iter(|| black_box(bench.run()));
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, normal_law, contact_kernel);
 criterion_main!(benches);

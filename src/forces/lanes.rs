@@ -26,6 +26,7 @@
 
 use glam::DVec3;
 
+use crate::bed::rng::SplitMix64;
 use crate::contact::tangential::TangentialSpring;
 use crate::contact::{
     self, BondState, FrictionParams, NormalParams, PairKinematics, hertz, rolling,
@@ -534,6 +535,16 @@ impl InstructionSet {
         }
         widths.into_iter().map(|width| Self { width }).collect()
     }
+
+    /// The build's name: `baseline`, `avx2` or `avx512`.
+    #[must_use]
+    pub(super) fn name(self) -> &'static str {
+        match self.width {
+            Width::Baseline => "baseline",
+            Width::Avx2 => "avx2",
+            Width::Avx512 => "avx512",
+        }
+    }
 }
 
 /// Runs the laws over every lane with the kernel built for `set`.
@@ -593,6 +604,113 @@ fn run_build<const BONDS: bool, const FRICTION: bool>(
         kernel::<BONDS, FRICTION, true>(model, lanes);
     } else {
         kernel::<BONDS, FRICTION, false>(model, lanes);
+    }
+}
+
+/// The step's contact kernel on a fixed set of contacts, for `benches/pair_kernel.rs`: the lanes
+/// filled [`LANES`] contacts at a time as the pair pass fills them, the laws run over them, and
+/// their results read back. Not part of the simulator's interface.
+#[doc(hidden)]
+#[derive(Debug)]
+pub struct KernelBench {
+    model: Model,
+    inputs: Vec<ContactInput>,
+    lanes: ContactLanes,
+    set: InstructionSet,
+}
+
+impl KernelBench {
+    /// `count` contacts between spheres of `radius` \[m\] of the model's first material (with
+    /// the model's friction, if any), spread over what a settled bed holds: overlaps up to
+    /// 0.1 % of the radius, speeds up to 1 mm/s, spins up to 100 rad/s, and tangential springs
+    /// from none to twice the Coulomb limit (so that some lanes slide). `build`: the kernel's
+    /// build, `baseline`, `avx2` or `avx512`; `None` if this processor does not run it.
+    #[must_use]
+    pub fn new(model: Model, radius: f64, count: usize, build: &str) -> Option<Self> {
+        let set = InstructionSet::available()
+            .into_iter()
+            .find(|set| set.name() == build)?;
+        let material = PairMaterial::of(&model, 0, 0);
+        let mass = model.materials[0].density * 4.0 / 3.0 * std::f64::consts::PI * radius.powi(3);
+        let mut random = SplitMix64(0x9e37_79b9_7f4a_7c15);
+        let vector = |random: &mut SplitMix64, scale: f64| {
+            DVec3::new(random.symmetric(), random.symmetric(), random.symmetric()) * scale
+        };
+        let inputs = (0..count)
+            .map(|_| {
+                let overlap = 1e-3 * radius * (0.05 + 0.95 * random.unit());
+                let normal = vector(&mut random, 1.0).normalize_or(DVec3::Z);
+                // The Coulomb limit's spring length, μ F_n / k_t = μ (E*/6G*) δ (M.57, M.59).
+                let limit = material.friction.sliding * material.effective_modulus
+                    / (6.0
+                        * material
+                            .friction
+                            .effective_shear_modulus
+                            .max(f64::MIN_POSITIVE))
+                    * overlap;
+                let history = vector(&mut random, 1.0) * (2.0 * limit * random.unit());
+                ContactInput {
+                    separation: normal * (2.0 * radius - overlap),
+                    radius: [radius; 2],
+                    mass: [mass; 2],
+                    velocity: [vector(&mut random, 1e-3), vector(&mut random, 1e-3)],
+                    effective_modulus: material.effective_modulus,
+                    damping_ratio: material.damping_ratio,
+                    materials: material.materials,
+                    state: BondState::Unbonded,
+                    criterion: false,
+                    angular_velocity: [vector(&mut random, 100.0), vector(&mut random, 100.0)],
+                    friction: material.friction,
+                    held: TangentialSpring {
+                        history: history - history.dot(normal) * normal,
+                        spring_energy: 0.0,
+                    },
+                }
+            })
+            .collect();
+        Some(Self {
+            lanes: ContactLanes::for_model(&model),
+            model,
+            inputs,
+            set,
+        })
+    }
+
+    /// Number of contacts.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.inputs.len()
+    }
+
+    /// Whether there are no contacts.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.inputs.is_empty()
+    }
+
+    /// Runs the kernel over every contact and returns the sum of the forces' x components (so
+    /// that nothing is left out as unused).
+    pub fn run(&mut self) -> f64 {
+        let friction = self.model.friction.is_some();
+        let mut sum = 0.0;
+        for batch in self.inputs.chunks(LANES) {
+            for (i, input) in batch.iter().enumerate() {
+                if friction {
+                    self.lanes.set::<false, true>(i, input);
+                } else {
+                    self.lanes.set::<false, false>(i, input);
+                }
+            }
+            if friction {
+                run::<false, true>(self.set, &self.model, &mut self.lanes);
+            } else {
+                run::<false, false>(self.set, &self.model, &mut self.lanes);
+            }
+            sum += (0..batch.len())
+                .map(|i| self.lanes.output(i).force_on_a.x)
+                .sum::<f64>();
+        }
+        sum
     }
 }
 
@@ -824,6 +942,45 @@ mod tests {
                 "{bond_law} batches with the bond law"
             );
         }
+    }
+
+    /// The benchmark's contacts go through the laws: its sum is the laws' forces', batch by
+    /// batch, and its spread of springs has lanes that stick and lanes that slide.
+    #[test]
+    fn the_kernel_bench_runs_the_laws_on_sticking_and_sliding_contacts() {
+        let text = two_spheres_text(8000.0, 2.0 * PAPER_RADIUS, 0.1, 0.2, None, 1e-7, 1e-6)
+            .replace(
+                "model = \"hertz\"",
+                "model = \"hertz\"\nfriction_coefficient = 0.5",
+            );
+        let model = Model::build(&Scene::from_toml(&text).expect("the test's scene")).0;
+        let count = 10 * LANES + 3;
+        let mut bench = KernelBench::new(model.clone(), PAPER_RADIUS, count, "baseline")
+            .expect("the baseline runs everywhere");
+        assert_eq!(bench.len(), count);
+        let (mut expected, mut sliding, mut sticking) = (0.0, 0, 0);
+        for batch in bench.inputs.chunks(LANES) {
+            let outputs = batch
+                .iter()
+                .map(|input| contact_step::<false, true, false>(&model, input));
+            let mut batch_sum = 0.0;
+            for (input, out) in batch.iter().zip(outputs) {
+                batch_sum += out.force_on_a.x;
+                // A sliding spring is cut back to the Coulomb limit, for most of these springs
+                // by far more than the step's v_t dt (below 1e-8 m) can change its length.
+                if out.spring.history.length() < 0.9 * input.held.history.length() {
+                    sliding += 1;
+                } else {
+                    sticking += 1;
+                }
+            }
+            expected += batch_sum;
+        }
+        assert_eq!(bench.run().to_bits(), expected.to_bits());
+        assert!(
+            sliding > 0 && sticking > 0,
+            "{sliding} sliding, {sticking} sticking"
+        );
     }
 
     #[test]

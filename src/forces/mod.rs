@@ -32,6 +32,9 @@ use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
 
 mod lanes;
 
+#[doc(hidden)]
+pub use lanes::KernelBench;
+
 use lanes::{ContactInput, ContactLanes, InstructionSet, LANES, PairMaterial};
 
 /// `x_b − x_a` \[m\], as its minimum image across periodic axes (M.77).
