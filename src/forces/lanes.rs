@@ -9,7 +9,7 @@
 //! instructions: two contacts per instruction with the x86-64 baseline (SSE2), four with AVX2,
 //! the batch's eight with AVX-512. [`run`] takes the widest the processor has (detected at run
 //! time: the binary stays built for generic x86-64); on the LIGGGHTS bed the AVX-512 build made
-//! the whole step 4-6 % faster than the AVX2 one.
+//! the whole step 3.7-5.5 % faster than the AVX2 one.
 //!
 //! The lanes hold the same numbers and the laws do the same operations in the same order as one
 //! contact at a time: vector square roots and divisions round like scalar ones, and Rust never
