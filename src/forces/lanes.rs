@@ -499,8 +499,8 @@ pub(super) struct InstructionSet {
     width: Width,
 }
 
-/// The kernel's builds, narrowest first.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+/// The kernel's builds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Width {
     /// The build's own target (x86-64: SSE2, two contacts per instruction).
     Baseline,
@@ -510,30 +510,46 @@ enum Width {
     Avx512,
 }
 
+impl Width {
+    /// Every build, narrowest first.
+    const ALL: [Self; 3] = [Self::Baseline, Self::Avx2, Self::Avx512];
+
+    /// Whether this processor has the build's instructions.
+    fn runs(self) -> bool {
+        match self {
+            Self::Baseline => true,
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx512 => {
+                std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512dq")
+                    && std::arch::is_x86_feature_detected!("avx512vl")
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
+        }
+    }
+}
+
 impl InstructionSet {
     /// The widest this processor runs.
     #[must_use]
     pub(super) fn detect() -> Self {
-        *Self::available().last().expect("the baseline always runs")
+        let width = Width::ALL.into_iter().rev().find(|width| width.runs());
+        Self {
+            width: width.unwrap_or(Width::Baseline),
+        }
     }
 
     /// Every build this processor runs, narrowest first.
     #[must_use]
     pub(super) fn available() -> Vec<Self> {
-        let mut widths = vec![Width::Baseline];
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                widths.push(Width::Avx2);
-            }
-            if std::arch::is_x86_feature_detected!("avx512f")
-                && std::arch::is_x86_feature_detected!("avx512dq")
-                && std::arch::is_x86_feature_detected!("avx512vl")
-            {
-                widths.push(Width::Avx512);
-            }
-        }
-        widths.into_iter().map(|width| Self { width }).collect()
+        Width::ALL
+            .into_iter()
+            .filter(|width| width.runs())
+            .map(|width| Self { width })
+            .collect()
     }
 
     /// The build's name: `baseline`, `avx2` or `avx512`.
