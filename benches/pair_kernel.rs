@@ -6,9 +6,9 @@
 //!   (`forces::KernelBench`: normal and tangential laws over batches of 8 contacts, filled and
 //!   read back as the pass does), with the material and friction of the LIGGGHTS benchmark bed
 //!   (`scenes/liggghts_bed_20k.toml`, r = 15 µm), in each build this processor runs: the x86-64
-//!   baseline (SSE2), AVX2, AVX-512. About 17 % of that bed's step is this
-//!   kernel (docs/performance.md): a change to the laws shows here long before it shows in the
-//!   step's noise.
+//!   baseline (SSE2), AVX2, AVX-512. This kernel is 12-17 % of that bed's step (AVX-512, AVX2;
+//!   docs/performance.md): a change to the laws shows here long before it shows in the step's
+//!   noise.
 
 use am_sim::contact::{BondParams, BondState, NormalParams, PairKinematics, normal_force};
 use am_sim::forces::KernelBench;
