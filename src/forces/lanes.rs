@@ -895,11 +895,9 @@ mod tests {
         let inputs = inputs(16 * LANES);
         let (mut sliding, mut sticking, mut switched, mut rolling) = (0, 0, 0, 0);
         let mut bond_law = 0;
-        let mut reused = [
-            ContactLanes::default(),
-            ContactLanes::default(),
-            ContactLanes::default(),
-        ];
+        // One set of lanes per build this processor runs, each reused from batch to batch.
+        let sets = InstructionSet::available();
+        let mut reused = vec![ContactLanes::default(); sets.len()];
         for batch in inputs.chunks(LANES) {
             rolling += usize::from(batch.iter().any(|input| input.friction.rolling != 0.0));
             bond_law += usize::from(
@@ -915,7 +913,7 @@ mod tests {
                 .collect();
             // The lanes are reused from batch to batch, as the pair pass does: what one batch
             // left in them must not leak into the next.
-            for (set, lanes) in InstructionSet::available().into_iter().zip(&mut reused) {
+            for (&set, lanes) in sets.iter().zip(&mut reused) {
                 for (i, input) in batch.iter().enumerate() {
                     lanes.set::<BONDS, FRICTION>(i, input);
                 }
