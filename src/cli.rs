@@ -83,6 +83,10 @@ struct RunArgs {
     /// Run even when dt is beyond the scene's stability limit (see `am-sim check`).
     #[arg(long)]
     force: bool,
+    /// The widest instruction set of the contact kernel (default: the widest this processor
+    /// runs). Results are bitwise the same for any; keep `avx2` where AVX-512 runs slower.
+    #[arg(long, value_parser = ["baseline", "avx2", "avx512"])]
+    simd: Option<String>,
 }
 
 /// How a run ended without error.
@@ -202,6 +206,10 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
         .build()
         .map_err(|e| format!("cannot start the thread pool: {e}"))?;
     let threads = pool.current_num_threads();
+    let kernel = match &args.simd {
+        Some(build) => crate::forces::limit_kernel(build).map_err(|e| format!("--simd: {e}"))?,
+        None => crate::forces::kernel_build(),
+    };
     // Set-up (neighbour list, first forces) already runs on the requested threads.
     let mut sim = match &args.restart {
         Some(file) => pool.install(|| resume(path, file))?,
@@ -230,7 +238,7 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
         String::new()
     };
     say!(
-        "am-sim {}: {title}{} particles, {} steps of dt = {:.3e} s ({:.4e} s){from}, {threads} threads",
+        "am-sim {}: {title}{} particles, {} steps of dt = {:.3e} s ({:.4e} s){from}, {threads} threads, contact kernel {kernel}",
         env!("CARGO_PKG_VERSION"),
         sim.particles.len(),
         model.steps,

@@ -258,3 +258,67 @@ series_csv = "overlap.csv"
     let values = csv_values(&dir.path().join("overlap.csv"));
     assert!(values.iter().all(|v| v.is_finite()));
 }
+
+/// `--simd` caps the contact kernel's instruction set: the header names the build that ran, the
+/// series is bitwise that of the default build (every build gives bitwise the same), and a name
+/// that is no build is refused before anything is written.
+#[test]
+fn simd_caps_the_kernel_without_changing_a_bit_of_the_results() {
+    // The friction pile's first 0.01 s (2000 steps): frictional contacts by the hundred.
+    let text_of_scene = std::fs::read_to_string(scene("friction_pile.toml"))
+        .unwrap()
+        .replace("duration_s = 0.4", "duration_s = 0.01")
+        .replace("every_steps = 2000", "every_steps = 100");
+    let run = |simd: Option<&str>| {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("pile.toml"), &text_of_scene).unwrap();
+        let mut args = vec!["pile.toml", "--threads", "2", "--quiet"];
+        args.extend(simd.map(|build| ["--simd", build]).into_iter().flatten());
+        let out = am_sim(dir.path(), &args);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let series = std::fs::read_to_string(dir.path().join("friction_pile.csv")).unwrap();
+        (text(&out.stdout), series)
+    };
+    let wall_time = am_sim::output::SERIES_COLUMNS
+        .iter()
+        .position(|c| c.name == "wall_time_s")
+        .expect("a wall time column");
+    let without_wall_time = |series: &str| -> Vec<Vec<String>> {
+        series
+            .lines()
+            .map(|line| {
+                line.split(',')
+                    .enumerate()
+                    .filter(|(i, _)| *i != wall_time)
+                    .map(|(_, v)| v.to_owned())
+                    .collect()
+            })
+            .collect()
+    };
+    let (default_stdout, default_series) = run(None);
+    let (baseline_stdout, baseline_series) = run(Some("baseline"));
+    assert!(
+        baseline_stdout.contains("contact kernel baseline"),
+        "{baseline_stdout}"
+    );
+    assert!(
+        default_stdout.contains("contact kernel "),
+        "{default_stdout}"
+    );
+    assert!(default_series.lines().count() > 20, "{default_series}");
+    assert_eq!(
+        without_wall_time(&baseline_series),
+        without_wall_time(&default_series)
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("pile.toml"), &text_of_scene).unwrap();
+    let bad = am_sim(dir.path(), &["pile.toml", "--simd", "avx1024"]);
+    assert!(!bad.status.success());
+    assert!(
+        text(&bad.stderr).contains("avx1024"),
+        "{}",
+        text(&bad.stderr)
+    );
+    assert!(!dir.path().join("friction_pile.csv").exists());
+}

@@ -24,6 +24,8 @@
 //! the bond law, vectorised, which gives bitwise the same (the normal law goes straight to its
 //! Hertz branch there).
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use glam::DVec3;
 
 use crate::bed::rng::SplitMix64;
@@ -510,9 +512,33 @@ enum Width {
     Avx512,
 }
 
+/// How many of [`Width::ALL`], narrowest first, the kernel may take ([`limit_kernel`]): all of
+/// them unless the run asked for fewer.
+static ALLOWED_WIDTHS: AtomicUsize = AtomicUsize::new(Width::ALL.len());
+
 impl Width {
     /// Every build, narrowest first.
     const ALL: [Self; 3] = [Self::Baseline, Self::Avx2, Self::Avx512];
+
+    /// The build's name.
+    fn name(self) -> &'static str {
+        match self {
+            Self::Baseline => "baseline",
+            Self::Avx2 => "avx2",
+            Self::Avx512 => "avx512",
+        }
+    }
+
+    /// The widest build this processor runs among the first `allowed` of [`Width::ALL`] (at
+    /// least the baseline).
+    fn widest(allowed: usize) -> Self {
+        Self::ALL[..allowed.clamp(1, Self::ALL.len())]
+            .iter()
+            .rev()
+            .copied()
+            .find(|width| width.runs())
+            .unwrap_or(Self::Baseline)
+    }
 
     /// Whether this processor has the build's instructions.
     fn runs(self) -> bool {
@@ -533,12 +559,11 @@ impl Width {
 }
 
 impl InstructionSet {
-    /// The widest this processor runs.
+    /// The widest this processor runs, within the run's cap ([`limit_kernel`]).
     #[must_use]
     pub(super) fn detect() -> Self {
-        let width = Width::ALL.into_iter().rev().find(|width| width.runs());
         Self {
-            width: width.unwrap_or(Width::Baseline),
+            width: Width::widest(ALLOWED_WIDTHS.load(Ordering::Relaxed)),
         }
     }
 
@@ -555,12 +580,33 @@ impl InstructionSet {
     /// The build's name: `baseline`, `avx2` or `avx512`.
     #[must_use]
     pub(super) fn name(self) -> &'static str {
-        match self.width {
-            Width::Baseline => "baseline",
-            Width::Avx2 => "avx2",
-            Width::Avx512 => "avx512",
-        }
+        self.width.name()
     }
+}
+
+/// Caps the contact kernel's build at `build` (`baseline`, `avx2` or `avx512`) for the rest of
+/// the process (`am-sim --simd`), for a processor on which the wider builds run slower (some
+/// lower their clock for 512-bit instructions) or to compare the builds. The results do not
+/// change: every build gives bitwise the same. Returns the build the kernel takes from now on:
+/// `build`, or the widest below it that this processor runs.
+///
+/// # Errors
+/// If `build` names no build of the kernel.
+pub fn limit_kernel(build: &str) -> Result<&'static str, String> {
+    let position = Width::ALL
+        .iter()
+        .position(|width| width.name() == build)
+        .ok_or_else(|| {
+            format!("{build:?} is not a build of the contact kernel (baseline, avx2, avx512)")
+        })?;
+    ALLOWED_WIDTHS.store(position + 1, Ordering::Relaxed);
+    Ok(Width::widest(position + 1).name())
+}
+
+/// The build the contact kernel takes: `baseline`, `avx2` or `avx512`.
+#[must_use]
+pub fn kernel_build() -> &'static str {
+    InstructionSet::detect().name()
 }
 
 /// Runs the laws over every lane with the kernel built for `set`.
@@ -995,6 +1041,26 @@ mod tests {
             sliding > 0 && sticking > 0,
             "{sliding} sliding, {sticking} sticking"
         );
+    }
+
+    /// A cap keeps the kernel at or below it, never below the baseline, and takes the widest
+    /// build the processor runs within it.
+    #[test]
+    fn a_cap_on_the_builds_takes_the_widest_the_processor_runs_within_it() {
+        let runs: Vec<Width> = Width::ALL.into_iter().filter(|w| w.runs()).collect();
+        assert_eq!(Width::widest(0), Width::Baseline);
+        assert_eq!(Width::widest(1), Width::Baseline);
+        assert_eq!(Width::widest(Width::ALL.len()), *runs.last().unwrap());
+        assert_eq!(Width::widest(usize::MAX), *runs.last().unwrap());
+        for allowed in 1..=Width::ALL.len() {
+            let widest = Width::widest(allowed);
+            assert!(widest.runs());
+            let position = Width::ALL.iter().position(|w| *w == widest).unwrap();
+            assert!(position < allowed, "{widest:?} beyond a cap of {allowed}");
+            // Nothing wider within the cap runs.
+            assert!(Width::ALL[position + 1..allowed].iter().all(|w| !w.runs()));
+        }
+        assert!(limit_kernel("avx1024").unwrap_err().contains("avx1024"));
     }
 
     #[test]
