@@ -71,7 +71,7 @@ fn contact_kernel(c: &mut Criterion) {
     let scene = Scene::load(&path).expect("valid scene");
     let (model, _) = Model::try_build(&scene).expect("buildable");
     let mut group = c.benchmark_group("contact_kernel");
-    for build in ["baseline", "avx2", "avx512"] {
+    for build in am_sim::forces::kernel_builds() {
         // A build this processor does not run is left out.
         let Some(mut bench) = KernelBench::new(model.clone(), 15e-6, 4096, build) else {
             continue;

@@ -85,7 +85,7 @@ struct RunArgs {
     force: bool,
     /// The widest instruction set of the contact kernel (default: the widest this processor
     /// runs). Results are bitwise the same for any; keep `avx2` where AVX-512 runs slower.
-    #[arg(long, value_parser = ["baseline", "avx2", "avx512"])]
+    #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(crate::forces::kernel_builds()))]
     simd: Option<String>,
 }
 

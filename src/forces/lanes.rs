@@ -597,10 +597,20 @@ pub fn limit_kernel(build: &str) -> Result<&'static str, String> {
         .iter()
         .position(|width| width.name() == build)
         .ok_or_else(|| {
-            format!("{build:?} is not a build of the contact kernel (baseline, avx2, avx512)")
+            format!(
+                "{build:?} is not a build of the contact kernel ({})",
+                kernel_builds().join(", ")
+            )
         })?;
     ALLOWED_WIDTHS.store(position + 1, Ordering::Relaxed);
     Ok(Width::widest(position + 1).name())
+}
+
+/// The names of the contact kernel's builds, narrowest first (whether or not this processor
+/// runs them): what [`limit_kernel`] accepts.
+#[must_use]
+pub fn kernel_builds() -> [&'static str; 3] {
+    Width::ALL.map(Width::name)
 }
 
 /// The build the contact kernel takes: `baseline`, `avx2` or `avx512`.

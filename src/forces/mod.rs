@@ -34,7 +34,7 @@ mod lanes;
 
 #[doc(hidden)]
 pub use lanes::KernelBench;
-pub use lanes::{kernel_build, limit_kernel};
+pub use lanes::{kernel_build, kernel_builds, limit_kernel};
 
 use lanes::{ContactInput, ContactLanes, InstructionSet, LANES, PairMaterial};
 
