@@ -3,7 +3,7 @@
 //! - `pair_kernel/hertz`, `pair_kernel/bonded`: the pure normal law (`contact::normal_force`) on
 //!   a fixed batch of pair kinematics, Hertz-only and bonded pairs.
 //! - `contact_kernel/liggghts_bed_{baseline,avx2,avx512}`: the kernel the pair pass runs
-//!   (`forces::KernelBench`: normal and tangential laws over batches of 8 contacts, filled and
+//!   (`forces::KernelBench`: normal and tangential laws over batches of 16 contacts, filled and
 //!   read back as the pass does), with the material and friction of the LIGGGHTS benchmark bed
 //!   (`scenes/liggghts_bed_20k.toml`, r = 15 µm), in each build this processor runs: the x86-64
 //!   baseline (SSE2), AVX2, AVX-512. This kernel is 12-17 % of that bed's step (AVX-512, AVX2;
