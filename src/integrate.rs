@@ -66,15 +66,25 @@ pub fn kick_drift(
         f64::max,
         |first, (((x, v), (f, angular)), sums)| {
             let mut max_speed_squared: f64 = 0.0;
-            for (k, ((x, v), f)) in (first..).zip(x.iter_mut().zip(v.iter_mut()).zip(f.iter_mut()))
-            {
-                let velocity = *v + 0.5 * dt / mass[k] * *f;
-                // Taken from the register: read back from memory, the vector straddles the two
-                // stores that wrote it and waits for them (it doubled the pass's time).
-                max_speed_squared = max_speed_squared.max(velocity.length_squared());
-                *v = velocity;
-                *x += dt * velocity;
-                *f = mass[k] * gravity;
+            let mut kicks = [0.0; BLOCK];
+            for (start, ((x, v), f)) in (first..).step_by(BLOCK).zip(
+                x.chunks_mut(BLOCK)
+                    .zip(v.chunks_mut(BLOCK))
+                    .zip(f.chunks_mut(BLOCK)),
+            ) {
+                let mass = &mass[start..start + x.len()];
+                let kicks = half_kicks(dt, mass, &mut kicks);
+                for (((x, v), f), (&kick, &mass)) in
+                    x.iter_mut().zip(v).zip(f).zip(kicks.iter().zip(mass))
+                {
+                    let velocity = *v + kick * *f;
+                    // Taken from the register: read back from memory, the vector straddles the
+                    // two stores that wrote it and waits for them (it doubled the pass's time).
+                    max_speed_squared = max_speed_squared.max(velocity.length_squared());
+                    *v = velocity;
+                    *x += dt * velocity;
+                    *f = mass * gravity;
+                }
             }
             if let (Some(w), Some(t)) = angular {
                 kick_angular(w, t, first, mass, radius, dt);
@@ -127,11 +137,15 @@ pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64)
     };
     each_chunk(chunks, parallel, None, lowest, |first, (v, angular)| {
         let mut finite = true;
-        for (k, v) in (first..).zip(v.iter_mut()) {
-            *v += 0.5 * dt / mass[k] * force[k];
-            // `&`, not `&&`: no branch per particle.
-            let f = force[k];
-            finite &= f.x.is_finite() & f.y.is_finite() & f.z.is_finite();
+        let mut kicks = [0.0; BLOCK];
+        for (start, v) in (first..).step_by(BLOCK).zip(v.chunks_mut(BLOCK)) {
+            let range = start..start + v.len();
+            let kicks = half_kicks(dt, &mass[range.clone()], &mut kicks);
+            for ((v, &kick), &f) in v.iter_mut().zip(kicks).zip(&force[range]) {
+                *v += kick * f;
+                // `&`, not `&&`: no branch per particle.
+                finite &= f.x.is_finite() & f.y.is_finite() & f.z.is_finite();
+            }
         }
         if let (Some(w), Some(t)) = angular {
             kick_angular(w, t, first, mass, radius, dt);
@@ -161,6 +175,24 @@ fn kick_angular(
     for (k, (w, t)) in (first..).zip(omega.iter_mut().zip(torque)) {
         *w += 0.5 * dt / rolling::sphere_inertia(mass[k], radius[k]) * *t;
     }
+}
+
+/// Particles per block of [`half_kicks`]: the quotients stay in the first-level cache.
+const BLOCK: usize = 64;
+
+/// The half kicks' factors `(dt/2) / m` [s/kg] of a block of particles of `mass` \[kg\] (at
+/// most [`BLOCK`]), into `kicks`. In a loop of their own the divisions are vectorised (two per
+/// instruction even in the x86-64 baseline), where a division per particle inside the kick's
+/// loop ran one at a time; the quotients are the same numbers. On the 19.2k LIGGGHTS bed the
+/// step ran 2.6-5.6 % faster at 1 thread. The angular half kick's divisions by the inertia, done
+/// the same way, gained nothing measurable (1.00) and stay in their loop.
+#[inline(always)]
+fn half_kicks<'k>(dt: f64, mass: &[f64], kicks: &'k mut [f64; BLOCK]) -> &'k [f64] {
+    let kicks = &mut kicks[..mass.len()];
+    for (kick, &mass) in kicks.iter_mut().zip(mass) {
+        *kick = 0.5 * dt / mass;
+    }
+    kicks
 }
 
 /// Runs `visit(first, chunk)` for every chunk (`first`: the index of its first particle), in
@@ -248,6 +280,40 @@ mod tests {
             *t = DVec3::new(k as f64, 0.0, 0.0);
         }
         (particles, rotation)
+    }
+
+    #[test]
+    fn each_particle_is_kicked_by_its_own_mass() {
+        // Masses that differ from one particle to the next, over chunks and blocks that do not
+        // end together: a quotient taken for the wrong particle would change the velocities.
+        let count = 2 * CHUNK + 3 * BLOCK + 5;
+        let mut particles = Particles::default();
+        for k in 0..count {
+            particles.push(
+                ParticleInit {
+                    position: DVec3::ZERO,
+                    velocity: DVec3::new(1.0, -2.0, 0.5),
+                    radius: 1.0 + 0.1 * (k % 7) as f64,
+                    material: 0,
+                },
+                1000.0 + (k % 11) as f64,
+            );
+            particles.force[k] = DVec3::new(3.0, k as f64, -1.0);
+        }
+        let (start, force) = (particles.velocity.clone(), particles.force.clone());
+        let dt = 1e-3;
+        kick_drift(&mut particles, None, None, (dt, DVec3::ZERO));
+        particles.force.clone_from(&force);
+        assert_eq!(kick(&mut particles, None, dt), None);
+        for k in 0..count {
+            // The per-particle formula of (M.30) and (M.32), evaluated one particle at a time.
+            let half_kick = 0.5 * dt / particles.mass[k] * force[k];
+            assert_eq!(
+                particles.velocity[k],
+                start[k] + half_kick + half_kick,
+                "particle {k}"
+            );
+        }
     }
 
     #[test]
