@@ -38,16 +38,17 @@ pub use lanes::{kernel_build, kernel_builds, limit_kernel};
 
 use lanes::{ContactInput, ContactLanes, InstructionSet, LANES, PairMaterial};
 
-/// `x_b − x_a` \[m\], as its minimum image across periodic axes (M.77).
+/// `x_b − x_a` \[m\] of particles `a` and `b` at `position`, as its minimum image across
+/// periodic axes (M.77).
 #[inline(always)]
 #[must_use]
 pub fn pair_separation(
     periodic: Option<&Periodic>,
-    particles: &Particles,
+    position: &[DVec3],
     a: usize,
     b: usize,
 ) -> DVec3 {
-    let separation = particles.position[b] - particles.position[a];
+    let separation = position[b] - position[a];
     periodic.map_or(separation, |p| p.minimum_image(separation))
 }
 
@@ -61,7 +62,7 @@ pub fn pair_geometry(
     a: usize,
     b: usize,
 ) -> (DVec3, f64) {
-    let separation = pair_separation(periodic, particles, a, b);
+    let separation = pair_separation(periodic, &particles.position, a, b);
     let distance = separation.length();
     (
         unit_normal(separation, distance),
@@ -558,8 +559,7 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
     {
         let (a, b) = reads.pair(owner, partner);
         let periodic = model.periodic.as_ref().filter(|_| minimum_image);
-        let separation = reads.position[b] - reads.position[a];
-        let separation = periodic.map_or(separation, |p| p.minimum_image(separation));
+        let separation = pair_separation(periodic, reads.position, a, b);
         let reach = reads.radius[a] + reads.radius[b];
         let touching = separation.length_squared() < reach * reach;
         let kept_slot = KeptSlot {
