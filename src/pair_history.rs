@@ -18,7 +18,7 @@ use rayon::prelude::*;
 
 use crate::contact::tangential::TangentialSpring;
 use crate::neighbor::{HeldPairs, NeighborList};
-use crate::scatter::{OwnSlab, PerSlab, PerSlot, Scatter, Slot};
+use crate::scatter::{Opened, OwnSlab, PerSlab, PerSlot, Scatter, SlabVisit, Slot};
 
 /// A slot without a history entry.
 pub const NO_ENTRY: u32 = u32::MAX;
@@ -332,42 +332,61 @@ pub struct HistoryTargets<'a> {
 }
 
 impl HistoryTargets<'_> {
+    /// The histories for the tokens of `visit` alone ([`Scatter::open`]).
+    #[inline]
+    #[must_use]
+    pub fn open<'s, 'v>(&'s self, visit: &SlabVisit<'v>) -> OpenHistories<'s, 'v> {
+        OpenHistories {
+            entry: self.entry.open(visit),
+            pool: self.pools.open(visit),
+        }
+    }
+}
+
+/// The histories as one slab visit reaches them: its slots' entries and its slab's pool.
+#[derive(Debug)]
+pub struct OpenHistories<'s, 'v> {
+    entry: Opened<'s, 'v, u32, PerSlot>,
+    pool: Opened<'s, 'v, Pool, PerSlab>,
+}
+
+impl<'v> OpenHistories<'_, 'v> {
     /// Slot `p`'s spring as the last pass left it (zero without an entry).
     #[inline(always)]
     #[must_use]
-    pub fn read(&self, slab: OwnSlab<'_>, p: Slot<'_>) -> TangentialSpring {
+    pub fn read(&self, slab: OwnSlab<'v>, p: Slot<'v>) -> TangentialSpring {
         match self.entry.read(p) {
             NO_ENTRY => TangentialSpring::default(),
-            e => self.pools.update_own(slab, |pool| pool.read(e as usize)),
+            e => self.pool.update_own(slab, Pool::read, e as usize),
         }
     }
 
     /// Stores slot `p`'s spring for the next pass (a zero spring takes no entry).
     #[inline(always)]
-    pub fn write(&self, slab: OwnSlab<'_>, p: Slot<'_>, value: TangentialSpring) {
+    pub fn write(&self, slab: OwnSlab<'v>, p: Slot<'v>, value: TangentialSpring) {
         let e = if value == TangentialSpring::default() {
             NO_ENTRY
         } else {
-            self.pools.update_own(slab, |pool| pool.append(value))
+            self.pool.update_own(slab, Pool::append, value)
         };
-        self.entry.update(p, |slot| *slot = e);
+        self.entry.write(p, e);
     }
 
     /// Whether slot `p` holds a spring (from the last pass).
     #[inline]
     #[must_use]
-    pub fn holds(&self, p: Slot<'_>) -> bool {
+    pub fn holds(&self, p: Slot<'v>) -> bool {
         self.entry.read(p) != NO_ENTRY
     }
 
     /// The contact of slot `p` ended: returns what its spring held, and the slot keeps none.
     #[inline(always)]
-    pub fn release(&self, slab: OwnSlab<'_>, p: Slot<'_>) -> TangentialSpring {
+    pub fn release(&self, slab: OwnSlab<'v>, p: Slot<'v>) -> TangentialSpring {
         match self.entry.read(p) {
             NO_ENTRY => TangentialSpring::default(),
             e => {
-                self.entry.update(p, |slot| *slot = NO_ENTRY);
-                self.pools.update_own(slab, |pool| pool.read(e as usize))
+                self.entry.write(p, NO_ENTRY);
+                self.pool.update_own(slab, Pool::read, e as usize)
             }
         }
     }
@@ -548,17 +567,21 @@ mod tests {
         // Each pass adds 1 to every spring, except that the pair of slot 0 ends at pass 3.
         for pass in 1..=4 {
             let targets = histories.start_pass();
-            list.for_each_owner(
+            list.for_each_slab(
                 false,
                 (),
-                |(), window| {
-                    for (p, _) in window.pairs() {
-                        if p.index() == 0 && pass >= 3 {
-                            let released = targets.release(window.own_slab(), p);
-                            assert_eq!(released, spring(if pass == 3 { 2.0 } else { 0.0 }));
-                        } else {
-                            let before = targets.read(window.own_slab(), p);
-                            targets.write(window.own_slab(), p, spring(before.history.x + 1.0));
+                |(), visit| {
+                    let targets = targets.open(visit);
+                    for window in visit.windows() {
+                        for (p, _) in window.pairs() {
+                            if p.index() == 0 && pass >= 3 {
+                                let released = targets.release(window.own_slab(), p);
+                                assert_eq!(released, spring(if pass == 3 { 2.0 } else { 0.0 }));
+                            } else {
+                                let before = targets.read(window.own_slab(), p);
+                                let after = spring(before.history.x + 1.0);
+                                targets.write(window.own_slab(), p, after);
+                            }
                         }
                     }
                 },

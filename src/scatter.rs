@@ -11,13 +11,26 @@
 //!
 //! Which particles a window reaches is proven once per neighbour-list build, not at every
 //! write: the list checks that every partner lies in its owner's slab or in the successor slab
-//! (`NeighborList::build`), and concurrent windows have disjoint slab pairs. A write then costs
-//! only the bounds check of the array. (Checking every write against the window, as the first
-//! version did, took about 10 % of the LIGGGHTS bed's step: a load of the partner's slab and two
-//! compares per write, three writes per contact.) With debug assertions on, as in the tests,
-//! every token is still checked against the window's slabs. That guarantee is the single
-//! `unsafe` contract of the crate ([`SlabVisit::new`], [`Window::pair`], [`Window::particle`]);
-//! the passes themselves are safe code.
+//! (`NeighborList::build`), and concurrent windows have disjoint slab pairs. (Checking every
+//! write against the window, as the first version did, took about 10 % of the LIGGGHTS bed's
+//! step: a load of the partner's slab and two compares per write, three writes per contact.)
+//! With debug assertions on, as in the tests, every token is still checked against the window's
+//! slabs. That guarantee is the single `unsafe` contract of the crate ([`SlabVisit::new`], and
+//! within this module `Window::pair` and `Window::particle`); the passes themselves are safe
+//! code.
+//!
+//! Bounds are proven once per visit, too. A [`Scatter`] checks the index of every access, but a
+//! pass may open it for a slab visit ([`Scatter::open`]): the array's length is then checked
+//! once against the visit's list (its particle or slot count), and the [`Opened`] scatter
+//! takes no bounds check after. It takes that visit's tokens only: their lifetime is the
+//! visit's *brand*, invariant, and the list hands each visit to a closure generic over it, so no
+//! other visit's tokens (of a longer list, say) have it. The pair pass writes through opened
+//! scatters; checked at every access, the bounds had cost the 19.2k LIGGGHTS bed's step 6-8 %.
+//!
+//! No access hands out a reference that a nested access could alias: a per-particle or per-slot
+//! element is read and written as a value (`update(token, |value| new_value)`), and a slab's own
+//! element is changed by a plain function with a `'static` argument
+//! ([`Opened::update_own`]), which cannot reach the scatter again.
 //!
 //! A task visits a whole slab ([`SlabVisit`]), owner by owner. The tokens of its windows live as
 //! long as the slab visit, not just the owner's window: a pass may collect the contacts of
@@ -51,6 +64,13 @@ pub enum PerSlab {}
 /// visit, so a visit cannot hand one particle to two threads.
 type ThreadBound = PhantomData<*const ()>;
 
+/// Makes a type invariant in `'v`: the lifetime of a visit's tokens is then its *brand*. The
+/// list hands each visit to a closure generic over that lifetime (`for<'v> Fn(&SlabVisit<'v>)`),
+/// in which no other visit's tokens have it, and a lifetime that cannot shrink or grow cannot be
+/// made to match another. A scatter opened for a visit ([`Scatter::open`]) takes that visit's
+/// tokens only, whose indices its one check of the lengths covers.
+type Brand<'v> = PhantomData<fn(&'v ()) -> &'v ()>;
+
 /// What one visit may access: its owner, the partners of its slots, and those slots.
 #[derive(Debug)]
 pub struct Window<'a> {
@@ -66,6 +86,7 @@ pub struct Window<'a> {
     crossing: bool,
     /// The owner's place among its slab's members (`u32::MAX` outside [`SlabVisit::windows`]).
     ordinal: u32,
+    brand: Brand<'a>,
     thread: ThreadBound,
 }
 
@@ -74,7 +95,7 @@ pub struct Window<'a> {
 pub struct Member<'w> {
     /// (Particle counts fit in `u32`, as the list's partners do: a kept contact is smaller.)
     index: u32,
-    window: PhantomData<&'w ()>,
+    window: Brand<'w>,
     thread: ThreadBound,
 }
 
@@ -92,7 +113,7 @@ impl Member<'_> {
 pub struct Slot<'w> {
     /// (Slot counts fit in `u32`, as the list's offsets do.)
     index: u32,
-    window: PhantomData<&'w ()>,
+    window: Brand<'w>,
     thread: ThreadBound,
 }
 
@@ -109,7 +130,7 @@ impl Slot<'_> {
 #[derive(Debug, Clone, Copy)]
 pub struct OwnSlab<'w> {
     index: u32,
-    window: PhantomData<&'w ()>,
+    window: Brand<'w>,
     thread: ThreadBound,
 }
 
@@ -175,6 +196,7 @@ pub struct SlabVisit<'a> {
     slab_of: &'a [u32],
     crossing: &'a [bool],
     near: NearVisit<'a>,
+    brand: Brand<'a>,
     thread: ThreadBound,
 }
 
@@ -187,7 +209,12 @@ impl<'a> SlabVisit<'a> {
     /// Every partner of the members' slots lies in slab `slab` or `successor`, and while the
     /// visit lives no other thread holds a visit or window that reaches a particle of these two
     /// slabs or one of these slots. A near list to read holds only entries recorded by visits of
-    /// this slab with the same `members`, `offsets` and `partners`.
+    /// this slab with the same `members`, `offsets` and `partners`. Every member lies below
+    /// `slab_of.len()` (the partners do, lying in a slab by `slab_of`).
+    ///
+    /// The visit's lifetime `'a` is the brand of its tokens ([`Scatter::open`]): the visit is
+    /// handed only to code generic over `'a` (a `for<'a>` closure), where no other visit or
+    /// window has it.
     #[must_use]
     #[allow(clippy::too_many_arguments)]
     pub unsafe fn new(
@@ -209,6 +236,7 @@ impl<'a> SlabVisit<'a> {
             slab_of,
             crossing,
             near,
+            brand: PhantomData,
             thread: PhantomData,
         }
     }
@@ -357,12 +385,13 @@ impl<'a> Window<'a> {
     /// Every partner of these slots lies in slab `slab` or `successor` (by `slab_of`), and while
     /// the window lives no other thread holds a window that reaches a particle of these two
     /// slabs or one of these slots. (`crossing` is not part of the contract: see
-    /// [`Window::needs_minimum_image`].)
+    /// [`Window::needs_minimum_image`].) Its lifetime `'a` is that of the visit whose window
+    /// it is, with the same `partners` and `slab_of`, or no visit's ([`SlabVisit::new`]).
     ///
     /// # Panics
     /// If `slots` is not a range of `partners`.
     #[must_use]
-    pub unsafe fn pair(
+    unsafe fn pair(
         owner: usize,
         slots: Range<usize>,
         partners: &'a [u32],
@@ -379,6 +408,7 @@ impl<'a> Window<'a> {
             slabs: [slab, successor],
             crossing,
             ordinal: u32::MAX,
+            brand: PhantomData,
             thread: PhantomData,
         }
     }
@@ -387,9 +417,10 @@ impl<'a> Window<'a> {
     ///
     /// # Safety
     /// While the window lives no other thread holds a window that reaches particle `k`, and
-    /// `k` fits in `u32` (its token holds it so).
+    /// `k` fits in `u32` (its token holds it so). Its lifetime `'a` is no visit's
+    /// ([`SlabVisit::new`]).
     #[must_use]
-    pub unsafe fn particle(k: usize) -> Self {
+    unsafe fn particle(k: usize) -> Self {
         Self {
             owner: k,
             slots: 0..0,
@@ -398,6 +429,7 @@ impl<'a> Window<'a> {
             slabs: [u32::MAX; 2],
             crossing: false,
             ordinal: u32::MAX,
+            brand: PhantomData,
             thread: PhantomData,
         }
     }
@@ -529,63 +561,176 @@ impl<'a, T, I> Scatter<'a, T, I> {
     }
 }
 
-impl<T> Scatter<'_, T, PerParticle> {
-    /// Changes particle `k`'s element.
-    #[inline]
-    pub fn update(&self, k: Member<'_>, change: impl FnOnce(&mut T)) {
-        let element = self.element(k.index());
-        // SAFETY: k is a member of a live window on this thread, and no concurrent window
-        // reaches it (`Window`'s contract).
-        change(unsafe { &mut *element });
-    }
-
+impl<T: Copy> Scatter<'_, T, PerParticle> {
     /// Particle `k`'s element.
     #[inline]
     #[must_use]
-    pub fn read(&self, k: Member<'_>) -> T
-    where
-        T: Copy,
-    {
+    pub fn read(&self, k: Member<'_>) -> T {
+        // SAFETY: k is a member of a live window on this thread, and no concurrent window
+        // reaches it (`Window`'s contract); in bounds (`element`).
+        unsafe { self.element(k.index()).read() }
+    }
+
+    /// Sets particle `k`'s element to `change` of it. (A value in, a value out: no reference
+    /// to the element is alive while `change` runs, which could reach the element again.)
+    #[inline]
+    pub fn update(&self, k: Member<'_>, change: impl FnOnce(T) -> T) {
         let element = self.element(k.index());
-        // SAFETY: as in `update`.
-        unsafe { *element }
+        // SAFETY: as in `read`.
+        unsafe { element.write(change(element.read())) }
+    }
+}
+
+impl<T: Copy> Scatter<'_, T, PerSlot> {
+    /// Slot `p`'s element.
+    #[inline]
+    #[must_use]
+    pub fn read(&self, p: Slot<'_>) -> T {
+        // SAFETY: p is a slot of a live window on this thread, and no concurrent window holds it
+        // (`Window`'s contract); in bounds (`element`).
+        unsafe { self.element(p.index()).read() }
+    }
+
+    /// Sets slot `p`'s element to `value`.
+    #[inline]
+    pub fn write(&self, p: Slot<'_>, value: T) {
+        // SAFETY: as in `read`.
+        unsafe { self.element(p.index()).write(value) }
+    }
+}
+
+impl<T> Scatter<'_, T, PerParticle> {
+    /// This scatter for the tokens of `visit` alone, without a bounds check per access.
+    ///
+    /// # Panics
+    /// If the array is shorter than the visit's list has particles.
+    #[inline]
+    #[must_use]
+    pub fn open<'s, 'v>(&'s self, visit: &SlabVisit<'v>) -> Opened<'s, 'v, T, PerParticle> {
+        assert!(
+            visit.slab_of.len() <= self.len,
+            "a per-particle array of {} for a list of {} particles",
+            self.len,
+            visit.slab_of.len()
+        );
+        Opened::at(self.start)
     }
 }
 
 impl<T> Scatter<'_, T, PerSlot> {
-    /// Changes slot `p`'s element.
-    #[inline]
-    pub fn update(&self, p: Slot<'_>, change: impl FnOnce(&mut T)) {
-        let element = self.element(p.index());
-        // SAFETY: p is a slot of a live window on this thread, and no concurrent window holds it
-        // (`Window`'s contract).
-        change(unsafe { &mut *element });
-    }
-
-    /// Slot `p`'s element.
+    /// This scatter for the tokens of `visit` alone, without a bounds check per access.
+    ///
+    /// # Panics
+    /// If the array is shorter than the visit's list has slots.
     #[inline]
     #[must_use]
-    pub fn read(&self, p: Slot<'_>) -> T
-    where
-        T: Copy,
-    {
-        let element = self.element(p.index());
-        // SAFETY: as in `update`.
-        unsafe { *element }
+    pub fn open<'s, 'v>(&'s self, visit: &SlabVisit<'v>) -> Opened<'s, 'v, T, PerSlot> {
+        assert!(
+            visit.partners.len() <= self.len,
+            "a per-slot array of {} for a list of {} slots",
+            self.len,
+            visit.partners.len()
+        );
+        Opened::at(self.start)
     }
 }
 
 impl<T> Scatter<'_, T, PerSlab> {
-    /// Applies `change` to the element of the visit's own slab and returns what it returns.
-    /// (Always inlined: the spring pools' reads and appends go through it at every contact,
-    /// and left to itself the compiler called it, 7 % of the step.)
+    /// The element of `visit`'s own slab, for its tokens alone.
+    ///
+    /// # Panics
+    /// If the array has no element for the visit's slab.
+    #[inline]
+    #[must_use]
+    pub fn open<'s, 'v>(&'s self, visit: &SlabVisit<'v>) -> Opened<'s, 'v, T, PerSlab> {
+        Opened::at(self.element(visit.slab as usize))
+    }
+}
+
+/// A [`Scatter`] opened for one slab visit, whose lifetime `'v` brands its tokens: it takes that
+/// visit's tokens only, and its length was checked once, when it was opened, against every index
+/// they can name (the list's particle or slot count; a per-slab scatter holds the visit's own
+/// slab's element). Its accesses then take no bounds check. (Checked at every access, as
+/// [`Scatter`] does, the checks cost the 19.2k LIGGGHTS bed's step 6-8 %: three to six per
+/// contact in the write-back alone.) It stays on the visiting thread, as the tokens do.
+#[derive(Debug)]
+pub struct Opened<'s, 'v, T, Index> {
+    /// The array's first element, or the own slab's element of a per-slab scatter.
+    start: *mut T,
+    scatter: PhantomData<&'s Scatter<'s, T, Index>>,
+    brand: Brand<'v>,
+}
+
+impl<T, I> Opened<'_, '_, T, I> {
+    #[inline]
+    fn at(start: *mut T) -> Self {
+        Self {
+            start,
+            scatter: PhantomData,
+            brand: PhantomData,
+        }
+    }
+}
+
+impl<'v, T: Copy> Opened<'_, 'v, T, PerParticle> {
+    /// Particle `k`'s element.
     #[inline(always)]
-    pub fn update_own<R>(&self, slab: OwnSlab<'_>, change: impl FnOnce(&mut T) -> R) -> R {
-        let element = self.element(slab.index as usize);
-        // SAFETY: concurrent visits have disjoint slab pairs (`SlabVisit`'s and `Window`'s
-        // contracts), so no other thread's visit names this slab as its own; the owners of one
-        // slab are visited one after the other by the same task.
-        change(unsafe { &mut *element })
+    #[must_use]
+    pub fn read(&self, k: Member<'v>) -> T {
+        // SAFETY: k is a token of the visit this scatter was opened for (its brand), below its
+        // list's particle count (`SlabVisit::new`), which the array's length was checked
+        // against (`open`); no concurrent window reaches it (`Window`'s contract).
+        unsafe { self.start.add(k.index()).read() }
+    }
+
+    /// Sets particle `k`'s element to `change` of it.
+    #[inline(always)]
+    pub fn update(&self, k: Member<'v>, change: impl FnOnce(T) -> T) {
+        // SAFETY: as in `read`.
+        unsafe {
+            let element = self.start.add(k.index());
+            element.write(change(element.read()));
+        }
+    }
+}
+
+impl<'v, T: Copy> Opened<'_, 'v, T, PerSlot> {
+    /// Slot `p`'s element.
+    #[inline(always)]
+    #[must_use]
+    pub fn read(&self, p: Slot<'v>) -> T {
+        // SAFETY: p is a token of the visit this scatter was opened for (its brand), below its
+        // list's slot count, which the array's length was checked against (`open`); no
+        // concurrent window holds it (`Window`'s contract).
+        unsafe { self.start.add(p.index()).read() }
+    }
+
+    /// Sets slot `p`'s element to `value`.
+    #[inline(always)]
+    pub fn write(&self, p: Slot<'v>, value: T) {
+        // SAFETY: as in `read`.
+        unsafe { self.start.add(p.index()).write(value) }
+    }
+}
+
+impl<'v, T> Opened<'_, 'v, T, PerSlab> {
+    /// `change(element, argument)` on the visit's own slab's element. A function and a
+    /// `'static` argument, not a closure: `change` cannot reach this scatter, so no second
+    /// reference to the element is made while it runs. (Always inlined: the spring pools' reads
+    /// and appends go through it at every contact, and left to itself the compiler called it,
+    /// 7 % of the step.)
+    #[inline(always)]
+    pub fn update_own<A: 'static, R>(
+        &self,
+        slab: OwnSlab<'v>,
+        change: fn(&mut T, A) -> R,
+        argument: A,
+    ) -> R {
+        debug_assert!(slab.index != u32::MAX);
+        // SAFETY: the element of the visit's own slab (`open`); concurrent visits have disjoint
+        // slab pairs (`SlabVisit`'s contract), so no other thread's visit names this slab as its
+        // own, and `change` cannot make a second reference to the element (see above).
+        change(unsafe { &mut *self.start }, argument)
     }
 }
 
@@ -673,7 +818,8 @@ mod tests {
         let slab_of = [0, 0, 1, 2, 1];
         // Owner 0's slots are 3 and 4, with partners 4 and 2 (slab 1, the successor).
         let partners = [9, 9, 9, 4, 2, 9];
-        // SAFETY: single-threaded test; the partners lie in slabs 0 and 1.
+        // SAFETY: single-threaded test; the partners lie in slabs 0 and 1; no visit shares the
+        // window's lifetime.
         let window = unsafe { Window::pair(0, 3..5, &partners, &slab_of, 0, 1, false) };
         let pairs: Vec<(usize, usize)> = window
             .pairs()
@@ -684,25 +830,87 @@ mod tests {
         let particles: Scatter<'_, f64, PerParticle> = Scatter::new(&mut values);
         let mut slot_values = vec![0u8; 6];
         let slots: Scatter<'_, u8, PerSlot> = Scatter::new(&mut slot_values);
-        particles.update(window.owner(), |v| *v += 1.0);
+        particles.update(window.owner(), |v| v + 1.0);
         for (slot, partner) in window.pairs() {
-            particles.update(partner, |v| *v += 2.0);
-            slots.update(slot, |s| *s = 1);
+            particles.update(partner, |v| v + 2.0);
+            slots.write(slot, 1);
         }
         assert_eq!(particles.read(window.owner()), 1.0);
-        let mut pools = vec![Vec::new(), Vec::new(), Vec::new()];
-        let pools: Scatter<'_, Vec<u8>, PerSlab> = Scatter::new(&mut pools);
-        pools.update_own(window.own_slab(), |pool| pool.push(7));
         // SAFETY: single-threaded test.
         let particle = unsafe { Window::particle(1) };
         assert_eq!(particle.pairs().count(), 0);
         assert!(std::panic::catch_unwind(|| particle.own_slab()).is_err());
-        assert_eq!(
-            pools.update_own(window.own_slab(), |pool| pool.clone()),
-            vec![7]
-        );
         assert_eq!(values, [1.0, 0.0, 2.0, 0.0, 2.0]);
         assert_eq!(slot_values, [0, 0, 0, 1, 1, 0]);
+    }
+
+    /// A scatter opened for a slab visit reaches every element the visit's tokens name (the
+    /// owners, their partners and slots, the slab's own element) and no other; it cannot be
+    /// opened for a list longer than its array.
+    #[test]
+    fn an_opened_scatter_writes_what_the_visit_names_and_checks_its_length_once() {
+        // Five particles; slab 0 holds 0 and 1, whose slots 0-2 have partners in slabs 0 and 1.
+        let slab_of = [0, 0, 1, 2, 1];
+        let members = [0, 1];
+        let offsets = [0, 2, 3, 3, 3, 3];
+        let partners = [4, 2, 4];
+        let crossing = [false; 5];
+        // SAFETY: single-threaded test; the partners lie in slabs 0 and 1, the members below 5.
+        let visit = unsafe {
+            SlabVisit::new(
+                0,
+                1,
+                &members,
+                &offsets,
+                &partners,
+                &slab_of,
+                &crossing,
+                NearVisit::Off,
+            )
+        };
+        let mut forces = vec![0.0; 5];
+        let mut states = vec![0u8; 3];
+        let mut pools = vec![Vec::new(), Vec::new()];
+        {
+            let forces = Scatter::<_, PerParticle>::new(&mut forces);
+            let states = Scatter::<_, PerSlot>::new(&mut states);
+            let pools = Scatter::<_, PerSlab>::new(&mut pools);
+            let (opened_forces, opened_states) = (forces.open(&visit), states.open(&visit));
+            let opened_pools = pools.open(&visit);
+            for window in visit.windows() {
+                for (slot, partner) in window.pairs() {
+                    // Each pair adds 1 to its owner and 10 to its partner.
+                    opened_forces.update(window.owner(), |f| f + 1.0);
+                    opened_forces.update(partner, |f| f + 10.0);
+                    opened_states.write(slot, opened_states.read(slot) + 1);
+                    let pushed = opened_pools.update_own(
+                        window.own_slab(),
+                        |pool: &mut Vec<usize>, b| {
+                            pool.push(b);
+                            pool.len()
+                        },
+                        partner.index(),
+                    );
+                    assert!(pushed <= 3);
+                }
+                assert!(opened_forces.read(window.owner()) >= 1.0);
+            }
+        }
+        assert_eq!(forces, [2.0, 1.0, 10.0, 0.0, 20.0]);
+        assert_eq!(states, [1, 1, 1]);
+        assert_eq!(pools, [vec![4, 2, 4], vec![]]);
+        // An array shorter than the list's particles, slots or slabs is refused when opened.
+        let refused =
+            |open: &dyn Fn()| std::panic::catch_unwind(std::panic::AssertUnwindSafe(open)).is_err();
+        let mut short = vec![0.0; 4];
+        let short = Scatter::<f64, PerParticle>::new(&mut short);
+        assert!(refused(&|| drop(short.open(&visit))));
+        let mut short = vec![0u8; 2];
+        let short = Scatter::<u8, PerSlot>::new(&mut short);
+        assert!(refused(&|| drop(short.open(&visit))));
+        let mut short: Vec<Vec<usize>> = Vec::new();
+        let short = Scatter::<_, PerSlab>::new(&mut short);
+        assert!(refused(&|| drop(short.open(&visit))));
     }
 
     /// A near list recorded by one visit reads back, in a later visit of the same slab, as the

@@ -21,11 +21,11 @@ use crate::contact::tangential::TangentialSpring;
 use crate::contact::{self, BondState, FrictionParams, PairKinematics, rolling, tangential};
 use crate::model::{Model, Wall};
 use crate::neighbor::{NearPairs, NeighborList};
-use crate::pair_history::{HistoryTargets, TangentialHistories};
+use crate::pair_history::{HistoryTargets, OpenHistories, TangentialHistories};
 use crate::particles::{Particles, Rotation};
 use crate::periodic::Periodic;
 use crate::scatter::{
-    self, Member, NearTokens, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
+    self, Member, NearTokens, Opened, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
 };
 use crate::thermal::{self, ThermalModel};
 use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
@@ -423,6 +423,63 @@ struct HeatTargets<'a> {
     total_conductance: Scatter<'a, f64, PerParticle>,
 }
 
+impl PairTargets<'_> {
+    /// The targets for the tokens of `visit` alone, with the physics of one compiled pass:
+    /// those it leaves out are `None`.
+    #[inline(always)]
+    fn open<'t, 'v, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+        &'t self,
+        visit: &SlabVisit<'v>,
+    ) -> OpenTargets<'t, 'v> {
+        OpenTargets {
+            force: self.force.open(visit),
+            lost: self.lost.open(visit),
+            states: self
+                .states
+                .as_ref()
+                .filter(|_| BONDS)
+                .map(|s| s.open(visit)),
+            torque: self
+                .torque
+                .as_ref()
+                .filter(|_| FRICTION)
+                .map(|t| t.open(visit)),
+            tangential: self
+                .tangential
+                .as_ref()
+                .filter(|_| FRICTION)
+                .map(|h| h.open(visit)),
+            heat: self.heat.as_ref().filter(|_| HEAT).map(|h| OpenHeat {
+                model: h.model,
+                melted: h.melted,
+                temperature: h.temperature,
+                heat_flow: h.heat_flow.open(visit),
+                total_conductance: h.total_conductance.open(visit),
+            }),
+        }
+    }
+}
+
+/// [`PairTargets`] opened for one slab visit ([`Scatter::open`]): its tokens write them without
+/// a bounds check per access. What the compiled pass leaves out is `None`.
+struct OpenTargets<'t, 'v> {
+    force: Opened<'t, 'v, DVec3, PerParticle>,
+    lost: Opened<'t, 'v, f64, PerParticle>,
+    states: Option<Opened<'t, 'v, BondState, PerSlot>>,
+    torque: Option<Opened<'t, 'v, DVec3, PerParticle>>,
+    tangential: Option<OpenHistories<'t, 'v>>,
+    heat: Option<OpenHeat<'t, 'v>>,
+}
+
+/// [`HeatTargets`] opened for one slab visit.
+struct OpenHeat<'t, 'v> {
+    model: &'t ThermalModel,
+    melted: &'t [bool],
+    temperature: &'t [f64],
+    heat_flow: Opened<'t, 'v, f64, PerParticle>,
+    total_conductance: Opened<'t, 'v, f64, PerParticle>,
+}
+
 /// The pair pass over every slab, compiled for one combination of optional physics: bond
 /// states (`BONDS`), tangential springs and torques (`FRICTION`), conduction (`HEAT`). A target
 /// the combination leaves out is ignored even if present. A slab visit that records its near
@@ -445,6 +502,7 @@ fn pair_pass<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         refresh_near,
         ForceSummary::default(),
         |summary, slab| {
+            let targets = &targets.open::<BONDS, FRICTION, HEAT>(slab);
             let mut batch = Batch::new(model, slab);
             if slab.records_near() {
                 for window in slab.windows() {
@@ -537,9 +595,9 @@ const NEAR_PER_ROUND: usize = 256;
 fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
     model: &Model,
     particles: &Particles,
-    targets: &PairTargets<'_>,
+    targets: &OpenTargets<'_, 's>,
     entries: impl ExactSizeIterator<Item = NearTokens<'s>>,
-    batch: &mut Batch<'s>,
+    batch: &mut Batch<'_, 's>,
 ) {
     // Known at compile time to be `None` where the instantiation leaves the physics out.
     let states = targets.states.as_ref().filter(|_| BONDS);
@@ -613,8 +671,8 @@ struct OwnerSums<'s> {
 
 /// A slab's contacts on their way through the kernel: the lanes being filled, the events of the
 /// slots found since the last flush, and the sums of the owner being written back.
-struct Batch<'s> {
-    slab: &'s SlabVisit<'s>,
+struct Batch<'r, 's> {
+    slab: &'r SlabVisit<'s>,
     lanes: ContactLanes,
     filled: usize,
     events: Vec<Event<'s>>,
@@ -669,9 +727,9 @@ fn recycle<T, U>(mut empty: Vec<T>) -> Vec<U> {
         .collect()
 }
 
-impl<'s> Batch<'s> {
+impl<'r, 's> Batch<'r, 's> {
     /// A batch for the visit of `slab` with `model`'s contacts, with this thread's buffers.
-    fn new(model: &Model, slab: &'s SlabVisit<'s>) -> Self {
+    fn new(model: &Model, slab: &'r SlabVisit<'s>) -> Self {
         let buffers = BATCH_BUFFERS.with_borrow_mut(std::mem::take);
         Self {
             slab,
@@ -700,7 +758,7 @@ impl<'s> Batch<'s> {
         &mut self,
         model: &Model,
         particles: &Particles,
-        targets: &PairTargets<'_>,
+        targets: &OpenTargets<'_, 's>,
         set: InstructionSet,
         summary: &mut ForceSummary,
     ) {
@@ -721,7 +779,7 @@ impl<'s> Batch<'s> {
                     energy,
                 } => {
                     self.begin_owner(owner, targets).lost += 0.5 * energy;
-                    targets.lost.update(partner, |l| *l += 0.5 * energy);
+                    targets.lost.update(partner, |l| l + 0.5 * energy);
                 }
                 Event::Contact {
                     owner,
@@ -736,7 +794,7 @@ impl<'s> Batch<'s> {
                     summary.observe_overlap(out.overlap_ratio, if r_a <= r_b { a } else { b });
                     if let Some(states) = states {
                         if out.state != state_before {
-                            states.update(slot, |s| *s = out.state);
+                            states.write(slot, out.state);
                         }
                     }
                     let sums = self.begin_owner(owner, targets);
@@ -744,13 +802,13 @@ impl<'s> Batch<'s> {
                         histories.write(own_slab, slot, out.spring);
                         sums.torque += out.torque_on_a;
                         if let Some(torque) = torque {
-                            torque.update(partner, |t| *t += out.torque_on_b);
+                            torque.update(partner, |t| t + out.torque_on_b);
                         }
                     }
                     sums.force += out.force_on_a;
                     sums.lost += 0.5 * out.lost;
-                    targets.force.update(partner, |f| *f -= out.force_on_a);
-                    targets.lost.update(partner, |l| *l += 0.5 * out.lost);
+                    targets.force.update(partner, |f| f - out.force_on_a);
+                    targets.lost.update(partner, |l| l + 0.5 * out.lost);
                     if let Some(h) = heat {
                         let conductance = thermal::pair_conductance(
                             h.model,
@@ -763,8 +821,8 @@ impl<'s> Batch<'s> {
                         let flow = conductance * (h.temperature[b] - h.temperature[a]);
                         sums.heat += flow;
                         sums.conductance += conductance;
-                        h.heat_flow.update(partner, |q| *q -= flow);
-                        h.total_conductance.update(partner, |g| *g += conductance);
+                        h.heat_flow.update(partner, |q| q - flow);
+                        h.total_conductance.update(partner, |g| g + conductance);
                     }
                 }
             }
@@ -776,7 +834,11 @@ impl<'s> Batch<'s> {
     /// The sums of `owner`, begun if it is not the owner being written back (whose sums are
     /// then written first).
     #[inline]
-    fn begin_owner(&mut self, owner: Member<'s>, targets: &PairTargets<'_>) -> &mut OwnerSums<'s> {
+    fn begin_owner(
+        &mut self,
+        owner: Member<'s>,
+        targets: &OpenTargets<'_, 's>,
+    ) -> &mut OwnerSums<'s> {
         if self
             .owner
             .is_none_or(|sums| sums.owner.index() != owner.index())
@@ -796,17 +858,17 @@ impl<'s> Batch<'s> {
 
     /// Writes the sums of the owner being written back, if any.
     #[inline]
-    fn finish_owner(&mut self, targets: &PairTargets<'_>) {
+    fn finish_owner(&mut self, targets: &OpenTargets<'_, 's>) {
         if let Some(sums) = self.owner.take() {
-            targets.force.update(sums.owner, |f| *f += sums.force);
-            targets.lost.update(sums.owner, |l| *l += sums.lost);
+            targets.force.update(sums.owner, |f| f + sums.force);
+            targets.lost.update(sums.owner, |l| l + sums.lost);
             if let Some(torque) = &targets.torque {
-                torque.update(sums.owner, |t| *t += sums.torque);
+                torque.update(sums.owner, |t| t + sums.torque);
             }
             if let Some(h) = &targets.heat {
-                h.heat_flow.update(sums.owner, |q| *q += sums.heat);
+                h.heat_flow.update(sums.owner, |q| q + sums.heat);
                 h.total_conductance
-                    .update(sums.owner, |g| *g += sums.conductance);
+                    .update(sums.owner, |g| g + sums.conductance);
             }
         }
     }
@@ -822,10 +884,10 @@ impl<'s> Batch<'s> {
 fn sift<'s, const BONDS: bool, const FRICTION: bool>(
     model: &Model,
     particles: &Particles,
-    targets: &PairTargets<'_>,
+    targets: &OpenTargets<'_, 's>,
     window: &Window<'s>,
     near_skin: f64,
-    batch: &mut Batch<'s>,
+    batch: &mut Batch<'_, 's>,
 ) {
     // Known at compile time to be `None` where the instantiation leaves the physics out.
     let states = targets.states.as_ref().filter(|_| BONDS);
@@ -860,9 +922,9 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
 /// What [`sift`] needs of one window.
 struct SiftedWindow<'w, 's, 't> {
     window: &'w Window<'s>,
-    slab: &'s SlabVisit<'s>,
-    states: Option<&'t Scatter<'t, BondState, PerSlot>>,
-    histories: Option<&'t HistoryTargets<'t>>,
+    slab: &'w SlabVisit<'s>,
+    states: Option<&'t Opened<'t, 's, BondState, PerSlot>>,
+    histories: Option<&'t OpenHistories<'t, 's>>,
     x_a: DVec3,
     r_a: f64,
     near_skin: f64,
@@ -920,8 +982,8 @@ fn keep<'s>(
     count: usize,
     slot: KeptSlot<'s>,
     touching: bool,
-    states: Option<&Scatter<'_, BondState, PerSlot>>,
-    histories: Option<&HistoryTargets<'_>>,
+    states: Option<&Opened<'_, 's, BondState, PerSlot>>,
+    histories: Option<&OpenHistories<'_, 's>>,
 ) -> usize {
     let bonded = states.is_some_and(|states| states.read(slot.slot) != BondState::Unbonded);
     let sprung = histories.is_some_and(|histories| histories.holds(slot.slot));
@@ -934,12 +996,12 @@ fn keep<'s>(
 /// full.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     model: &Model,
     particles: &Particles,
     omega: Option<&[DVec3]>,
-    targets: &PairTargets<'_>,
-    batch: &mut Batch<'_>,
+    targets: &OpenTargets<'_, 's>,
+    batch: &mut Batch<'_, 's>,
     set: InstructionSet,
     summary: &mut ForceSummary,
 ) {
@@ -967,7 +1029,7 @@ fn handle_kept<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             // Apart: no square root, no division, and the slot's state cleared.
             if let Some(states) = states {
                 if states.read(p) != BondState::Unbonded {
-                    states.update(p, |s| *s = BondState::Unbonded);
+                    states.write(p, BondState::Unbonded);
                 }
             }
             if let Some(histories) = histories {
@@ -1164,26 +1226,26 @@ fn particle_pass<const ROTATION: bool, const HEAT: bool>(
                 chunk.keep(k, w, step.spring);
             }
         }
-        force_out.update(particle, |f| *f += force);
-        lost_out.update(particle, |l| *l += lost);
+        force_out.update(particle, |f| f + force);
+        lost_out.update(particle, |l| l + lost);
         if let Some(t) = torque {
-            t.update(particle, |t| *t += torque_k);
+            t.update(particle, |t| t + torque_k);
         }
         let heat_rate = heat.map_or(0.0, |h| {
             let mut added = None;
             if h.exchange {
                 let (outside, outside_conductance) =
                     thermal::boundary_heat(h.model, &model.walls, state, k, h.temperature[k]);
-                h.boundary_flow.update(particle, |b| *b = outside);
+                h.boundary_flow.update(particle, |_| outside);
                 h.total_conductance
-                    .update(particle, |g| *g += outside_conductance);
+                    .update(particle, |g| g + outside_conductance);
                 added = Some(outside);
             }
             if let Some(laser_power) = h.laser_power {
                 added = Some(added.unwrap_or(0.0) + laser_power[k]);
             }
             if let Some(added) = added {
-                h.heat_flow.update(particle, |q| *q += added);
+                h.heat_flow.update(particle, |q| q + added);
             }
             h.total_conductance.read(particle) / h.heat_capacity[k]
         });

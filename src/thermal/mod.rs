@@ -715,12 +715,12 @@ fn heat_flows(
                         let q = h * (temperature[partner.index()] - t);
                         flow_a += q;
                         sum_a += h;
-                        flow.update(partner, |f| *f -= q);
-                        sum.update(partner, |g| *g += h);
+                        flow.update(partner, |f| f - q);
+                        sum.update(partner, |g| g + h);
                     }
                 }
-                flow.update(owner, |f| *f += flow_a);
-                sum.update(owner, |g| *g += sum_a);
+                flow.update(owner, |f| f + flow_a);
+                sum.update(owner, |g| g + sum_a);
             },
             |(), ()| (),
         );
