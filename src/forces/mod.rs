@@ -770,6 +770,8 @@ impl<'r, 's> Batch<'r, 's> {
         let torque = targets.torque.as_ref().filter(|_| FRICTION);
         let heat = targets.heat.as_ref().filter(|_| HEAT);
         let own_slab = self.slab.own_slab();
+        let reads = ParticleReads::of(particles);
+        let temperature = heat.map(|h| reads.cut(h.temperature));
         let mut lane = 0;
         for k in 0..self.events.len() {
             match self.events[k] {
@@ -790,7 +792,7 @@ impl<'r, 's> Batch<'r, 's> {
                     let [r_a, r_b] = self.lanes.radii(lane);
                     let state_before = self.lanes.state_before(lane);
                     lane += 1;
-                    let (a, b) = (owner.index(), partner.index());
+                    let (a, b) = reads.pair(owner, partner);
                     summary.observe_overlap(out.overlap_ratio, if r_a <= r_b { a } else { b });
                     if let Some(states) = states {
                         if out.state != state_before {
@@ -809,16 +811,15 @@ impl<'r, 's> Batch<'r, 's> {
                     sums.lost += 0.5 * out.lost;
                     targets.force.update(partner, |f| f - out.force_on_a);
                     targets.lost.update(partner, |l| l + 0.5 * out.lost);
-                    if let Some(h) = heat {
+                    if let (Some(h), Some(temperature)) = (heat, temperature) {
                         let conductance = thermal::pair_conductance(
                             h.model,
-                            particles,
-                            a,
-                            b,
+                            [reads.material[a], reads.material[b]],
+                            [r_a, r_b],
                             out.overlap,
                             out.effective_radius,
                         );
-                        let flow = conductance * (h.temperature[b] - h.temperature[a]);
+                        let flow = conductance * (temperature[b] - temperature[a]);
                         sums.heat += flow;
                         sums.conductance += conductance;
                         h.heat_flow.update(partner, |q| q - flow);

@@ -378,15 +378,14 @@ impl ThermalState {
     }
 }
 
-/// Conductance of the contact between particles `a` and `b` at `overlap` \[m\] (M.41, M.42) [W/K];
-/// 0 without overlap.
+/// Conductance of the contact between two particles of materials `[ma, mb]` and radii
+/// `[ra, rb]` \[m\] at `overlap` \[m\] (M.41, M.42) [W/K]; 0 without overlap.
 #[must_use]
 #[inline(always)] // in the pair pass, where √(r* δ) is shared with the contact laws
 pub fn pair_conductance(
     model: &ThermalModel,
-    particles: &Particles,
-    a: usize,
-    b: usize,
+    [ma, mb]: [u16; 2],
+    [ra, rb]: [f64; 2],
     overlap: f64,
     effective_radius: f64,
 ) -> f64 {
@@ -394,19 +393,16 @@ pub fn pair_conductance(
         return 0.0;
     }
     let contact = conduction::contact_radius(effective_radius, overlap);
-    let (ma, mb) = (particles.material[a], particles.material[b]);
     match model.conduction {
         ConductionModel::None => 0.0,
         // 2 k* a with k* from the per-material-pair table: no division in the hot loop.
         ConductionModel::BatchelorObrien => 2.0 * model.harmonic_conductivity(ma, mb) * contact,
         ConductionModel::OverlapArea => {
-            let (ra, rb) = (particles.radius[a], particles.radius[b]);
             2.0 * model.harmonic_conductivity(ma, mb)
                 * std::f64::consts::PI.sqrt()
                 * conduction::intersection_radius(ra, rb, ra + rb - overlap)
         }
         ConductionModel::ThermalPipe => {
-            let (ra, rb) = (particles.radius[a], particles.radius[b]);
             let (ka, kb) = (
                 model.materials[usize::from(ma)].conductivity,
                 model.materials[usize::from(mb)].conductivity,
@@ -432,9 +428,10 @@ pub fn update_conductances(
         if overlap <= 0.0 {
             return 0.0;
         }
-        let effective_radius =
-            crate::contact::hertz::effective_radius(particles.radius[a], particles.radius[b]);
-        pair_conductance(model, particles, a, b, overlap, effective_radius)
+        let radii = [particles.radius[a], particles.radius[b]];
+        let effective_radius = crate::contact::hertz::effective_radius(radii[0], radii[1]);
+        let materials = [particles.material[a], particles.material[b]];
+        pair_conductance(model, materials, radii, overlap, effective_radius)
     }));
 }
 
