@@ -599,37 +599,45 @@ impl<T: Copy> Scatter<'_, T, PerSlot> {
     }
 }
 
-impl<T> Scatter<'_, T, PerParticle> {
-    /// This scatter for the tokens of `visit` alone, without a bounds check per access.
-    ///
-    /// # Panics
-    /// If the array is shorter than the visit's list has particles.
-    #[inline]
-    #[must_use]
-    pub fn open<'s, 'v>(&'s self, visit: &SlabVisit<'v>) -> Opened<'s, 'v, T, PerParticle> {
-        assert!(
-            visit.slab_of.len() <= self.len,
-            "a per-particle array of {} for a list of {} particles",
-            self.len,
-            visit.slab_of.len()
-        );
-        Opened::at(self.start)
+/// An index kind whose tokens a visit names below a count of its list: particles or slots.
+/// (The unchecked accessors of [`Opened`] rest on these counts; they exist for this module's
+/// index kinds only.)
+pub trait Counted {
+    /// What the count counts, for messages.
+    const WHAT: &'static str;
+    /// The count every token of `visit` of this kind is below.
+    fn count(visit: &SlabVisit<'_>) -> usize;
+}
+
+impl Counted for PerParticle {
+    const WHAT: &'static str = "particles";
+    fn count(visit: &SlabVisit<'_>) -> usize {
+        visit.slab_of.len()
     }
 }
 
-impl<T> Scatter<'_, T, PerSlot> {
+impl Counted for PerSlot {
+    const WHAT: &'static str = "slots";
+    fn count(visit: &SlabVisit<'_>) -> usize {
+        visit.partners.len()
+    }
+}
+
+impl<T, I: Counted> Scatter<'_, T, I> {
     /// This scatter for the tokens of `visit` alone, without a bounds check per access.
     ///
     /// # Panics
-    /// If the array is shorter than the visit's list has slots.
+    /// If the array is shorter than the visit's list has particles (slots, for a per-slot
+    /// array).
     #[inline]
     #[must_use]
-    pub fn open<'s, 'v>(&'s self, visit: &SlabVisit<'v>) -> Opened<'s, 'v, T, PerSlot> {
+    pub fn open<'s, 'v>(&'s self, visit: &SlabVisit<'v>) -> Opened<'s, 'v, T, I> {
+        let count = I::count(visit);
         assert!(
-            visit.partners.len() <= self.len,
-            "a per-slot array of {} for a list of {} slots",
+            count <= self.len,
+            "an array of {} for a list of {count} {}",
             self.len,
-            visit.partners.len()
+            I::WHAT
         );
         Opened::at(self.start)
     }
