@@ -661,6 +661,67 @@ impl<T> Scatter<'_, T, PerSlab> {
 /// slab's element). Its accesses then take no bounds check. (Checked at every access, as
 /// [`Scatter`] does, the checks cost the 19.2k LIGGGHTS bed's step 6-8 %: three to six per
 /// contact in the write-back alone.) It stays on the visiting thread, as the tokens do.
+///
+/// The brand at work: below, a scatter of two particles is opened for the visit of a
+/// two-particle list, inside the visit of a three-particle list whose tokens live longer. With
+/// tokens of the visit it was opened for, the write compiles:
+///
+/// ```
+/// use am_sim::scatter::{NearVisit, PerParticle, Scatter, SlabVisit};
+/// // Particles 0..n in slab 0; particle 0 owns one slot, whose partner is the last particle.
+/// fn visit<R>(n: usize, f: impl for<'v> FnOnce(&SlabVisit<'v>) -> R) -> R {
+///     let members: Vec<u32> = (0..n as u32).collect();
+///     let mut offsets = vec![1u32; n + 1];
+///     offsets[0] = 0;
+///     let (partners, slab_of, crossing) = ([n as u32 - 1], vec![0; n], vec![false; n]);
+///     // SAFETY: one thread; the partner lies in slab 0; the visit goes to a `for<'v>` closure.
+///     let visit = unsafe {
+///         SlabVisit::new(0, 0, &members, &offsets, &partners, &slab_of, &crossing, NearVisit::Off)
+///     };
+///     f(&visit)
+/// }
+/// let mut forces = vec![0.0; 2];
+/// let forces = Scatter::<f64, PerParticle>::new(&mut forces);
+/// visit(3, |_long| {
+///     visit(2, |short| {
+///         let opened = forces.open(short);
+///         for window in short.windows() {
+///             for (_, partner) in window.pairs() {
+///                 opened.update(partner, |f| f + 1.0);
+///             }
+///         }
+///     })
+/// });
+/// ```
+///
+/// With a token of the three-particle list's visit (its partner is particle 2, past the array's
+/// end), it does not:
+///
+/// ```compile_fail
+/// # use am_sim::scatter::{NearVisit, PerParticle, Scatter, SlabVisit};
+/// # fn visit<R>(n: usize, f: impl for<'v> FnOnce(&SlabVisit<'v>) -> R) -> R {
+/// #     let members: Vec<u32> = (0..n as u32).collect();
+/// #     let mut offsets = vec![1u32; n + 1];
+/// #     offsets[0] = 0;
+/// #     let (partners, slab_of, crossing) = ([n as u32 - 1], vec![0; n], vec![false; n]);
+/// #     let visit = unsafe {
+/// #         SlabVisit::new(0, 0, &members, &offsets, &partners, &slab_of, &crossing, NearVisit::Off)
+/// #     };
+/// #     f(&visit)
+/// # }
+/// let mut forces = vec![0.0; 2];
+/// let forces = Scatter::<f64, PerParticle>::new(&mut forces);
+/// visit(3, |long| {
+///     visit(2, |short| {
+///         let opened = forces.open(short);
+///         for window in long.windows() {
+///             for (_, partner) in window.pairs() {
+///                 opened.update(partner, |f| f + 1.0);
+///             }
+///         }
+///     })
+/// });
+/// ```
 #[derive(Debug)]
 pub struct Opened<'s, 'v, T, Index> {
     /// The array's first element, or the own slab's element of a per-slab scatter.
