@@ -699,25 +699,29 @@ fn heat_flows(
     {
         let flow: Scatter<'_, f64, PerParticle> = Scatter::new(heat_flow);
         let sum: Scatter<'_, f64, PerParticle> = Scatter::new(total_conductance);
-        list.for_each_owner(
+        list.for_each_slab(
             parallel,
             (),
-            |(), window| {
-                let owner = window.owner();
-                let t = temperature[owner.index()];
-                let (mut flow_a, mut sum_a) = (0.0, 0.0);
-                for (p, partner) in window.pairs() {
-                    let h = conductance[p.index()];
-                    if h > 0.0 {
-                        let q = h * (temperature[partner.index()] - t);
-                        flow_a += q;
-                        sum_a += h;
-                        flow.update(partner, |f| f - q);
-                        sum.update(partner, |g| g + h);
+            |(), visit| {
+                // Opened for the visit: its writes take no bounds check (`scatter`).
+                let (flow, sum) = (flow.open(visit), sum.open(visit));
+                for window in visit.windows() {
+                    let owner = window.owner();
+                    let t = temperature[owner.index()];
+                    let (mut flow_a, mut sum_a) = (0.0, 0.0);
+                    for (p, partner) in window.pairs() {
+                        let h = conductance[p.index()];
+                        if h > 0.0 {
+                            let q = h * (temperature[partner.index()] - t);
+                            flow_a += q;
+                            sum_a += h;
+                            flow.update(partner, |f| f - q);
+                            sum.update(partner, |g| g + h);
+                        }
                     }
+                    flow.update(owner, |f| f + flow_a);
+                    sum.update(owner, |g| g + sum_a);
                 }
-                flow.update(owner, |f| f + flow_a);
-                sum.update(owner, |g| g + sum_a);
             },
             |(), ()| (),
         );
