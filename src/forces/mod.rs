@@ -768,10 +768,14 @@ impl<'r, 's> Batch<'r, 's> {
         let states = targets.states.as_ref().filter(|_| BONDS);
         let histories = targets.tangential.as_ref().filter(|_| FRICTION);
         let torque = targets.torque.as_ref().filter(|_| FRICTION);
-        let heat = targets.heat.as_ref().filter(|_| HEAT);
         let own_slab = self.slab.own_slab();
         let reads = ParticleReads::of(particles);
-        let temperature = heat.map(|h| reads.cut(h.temperature));
+        // With its temperatures cut to the particle count (one bounds check per pair).
+        let heat = targets
+            .heat
+            .as_ref()
+            .filter(|_| HEAT)
+            .map(|h| (h, reads.cut(h.temperature)));
         let mut lane = 0;
         for k in 0..self.events.len() {
             match self.events[k] {
@@ -811,7 +815,7 @@ impl<'r, 's> Batch<'r, 's> {
                     sums.lost += 0.5 * out.lost;
                     targets.force.update(partner, |f| f - out.force_on_a);
                     targets.lost.update(partner, |l| l + 0.5 * out.lost);
-                    if let (Some(h), Some(temperature)) = (heat, temperature) {
+                    if let Some((h, temperature)) = heat {
                         let conductance = thermal::pair_conductance(
                             h.model,
                             [reads.material[a], reads.material[b]],
