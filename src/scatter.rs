@@ -581,24 +581,6 @@ impl<T: Copy> Scatter<'_, T, PerParticle> {
     }
 }
 
-impl<T: Copy> Scatter<'_, T, PerSlot> {
-    /// Slot `p`'s element.
-    #[inline]
-    #[must_use]
-    pub fn read(&self, p: Slot<'_>) -> T {
-        // SAFETY: p is a slot of a live window on this thread, and no concurrent window holds it
-        // (`Window`'s contract); in bounds (`element`).
-        unsafe { self.element(p.index()).read() }
-    }
-
-    /// Sets slot `p`'s element to `value`.
-    #[inline]
-    pub fn write(&self, p: Slot<'_>, value: T) {
-        // SAFETY: as in `read`.
-        unsafe { self.element(p.index()).write(value) }
-    }
-}
-
 /// An index kind whose tokens a visit names below a count of its list: particles or slots.
 /// (The unchecked accessors of [`Opened`] rest on these counts; they exist for this module's
 /// index kinds only.)
@@ -897,12 +879,13 @@ mod tests {
         assert_eq!(pairs, [(3, 4), (4, 2)]);
         let mut values = vec![0.0; 5];
         let particles: Scatter<'_, f64, PerParticle> = Scatter::new(&mut values);
+        // (Per-slot arrays are written through a scatter opened for a slab visit only: see the
+        // next test.)
         let mut slot_values = vec![0u8; 6];
-        let slots: Scatter<'_, u8, PerSlot> = Scatter::new(&mut slot_values);
         particles.update(window.owner(), |v| v + 1.0);
         for (slot, partner) in window.pairs() {
             particles.update(partner, |v| v + 2.0);
-            slots.write(slot, 1);
+            slot_values[slot.index()] = 1;
         }
         assert_eq!(particles.read(window.owner()), 1.0);
         // SAFETY: single-threaded test.
