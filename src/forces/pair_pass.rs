@@ -1,0 +1,734 @@
+//! The pair pass: every touching pair's contact laws, once per pair, added to both particles.
+//!
+//! A coloured traversal of the neighbour list slab by slab
+//! ([`NeighborList::for_each_slab_near`]). Each slab visit *sifts* its candidates (every slot
+//! where it records its near list, the near list otherwise) for the pairs that need work,
+//! copies the touching ones into the lanes of a batch (`handle_kept`), runs the vectorised laws
+//! over a full batch (`lanes::run`) and writes the results back in the list's order
+//! ([`Batch::flush`]): each partner's share at once, each owner's summed over its slots. The
+//! targets are opened per visit ([`Scatter::open`]), so the writes check their bounds once per
+//! visit.
+
+use glam::DVec3;
+
+use super::lanes::{self, ContactInput, ContactLanes, InstructionSet, LANES, PairMaterial};
+use super::{ForceSummary, pair_separation};
+use crate::contact::BondState;
+use crate::contact::tangential::TangentialSpring;
+use crate::model::Model;
+use crate::neighbor::{NearPairs, NeighborList};
+use crate::pair_history::{HistoryTargets, OpenHistories};
+use crate::particles::Particles;
+use crate::scatter::{
+    Member, NearTokens, Opened, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
+};
+use crate::thermal::{self, ThermalModel};
+
+/// What the pair pass writes, shared by the concurrent slabs of a colour phase.
+pub(super) struct PairTargets<'a> {
+    pub(super) force: Scatter<'a, DVec3, PerParticle>,
+    pub(super) lost: Scatter<'a, f64, PerParticle>,
+    /// Per slot, with a bond law in the scene.
+    pub(super) states: Option<Scatter<'a, BondState, PerSlot>>,
+    pub(super) torque: Option<Scatter<'a, DVec3, PerParticle>>,
+    pub(super) tangential: Option<HistoryTargets<'a>>,
+    pub(super) heat: Option<HeatTargets<'a>>,
+}
+
+/// The thermal part of [`PairTargets`], with the inputs the conductances need.
+pub(super) struct HeatTargets<'a> {
+    pub(super) model: &'a ThermalModel,
+    pub(super) melted: &'a [bool],
+    pub(super) temperature: &'a [f64],
+    pub(super) heat_flow: Scatter<'a, f64, PerParticle>,
+    pub(super) total_conductance: Scatter<'a, f64, PerParticle>,
+}
+
+impl PairTargets<'_> {
+    /// The targets for the tokens of `visit` alone, with the physics of one compiled pass:
+    /// those it leaves out are `None`.
+    #[inline(always)]
+    fn open<'t, 'v, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+        &'t self,
+        visit: &SlabVisit<'v>,
+    ) -> OpenTargets<'t, 'v> {
+        OpenTargets {
+            force: self.force.open(visit),
+            lost: self.lost.open(visit),
+            states: self
+                .states
+                .as_ref()
+                .filter(|_| BONDS)
+                .map(|s| s.open(visit)),
+            torque: self
+                .torque
+                .as_ref()
+                .filter(|_| FRICTION)
+                .map(|t| t.open(visit)),
+            tangential: self
+                .tangential
+                .as_ref()
+                .filter(|_| FRICTION)
+                .map(|h| h.open(visit)),
+            heat: self.heat.as_ref().filter(|_| HEAT).map(|h| OpenHeat {
+                model: h.model,
+                melted: h.melted,
+                temperature: h.temperature,
+                heat_flow: h.heat_flow.open(visit),
+                total_conductance: h.total_conductance.open(visit),
+            }),
+        }
+    }
+}
+
+/// [`PairTargets`] opened for one slab visit ([`Scatter::open`]): its tokens write them without
+/// a bounds check per access. What the compiled pass leaves out is `None`.
+struct OpenTargets<'t, 'v> {
+    force: Opened<'t, 'v, DVec3, PerParticle>,
+    lost: Opened<'t, 'v, f64, PerParticle>,
+    states: Option<Opened<'t, 'v, BondState, PerSlot>>,
+    torque: Option<Opened<'t, 'v, DVec3, PerParticle>>,
+    tangential: Option<OpenHistories<'t, 'v>>,
+    heat: Option<OpenHeat<'t, 'v>>,
+}
+
+/// [`HeatTargets`] opened for one slab visit.
+struct OpenHeat<'t, 'v> {
+    model: &'t ThermalModel,
+    melted: &'t [bool],
+    temperature: &'t [f64],
+    heat_flow: Opened<'t, 'v, f64, PerParticle>,
+    total_conductance: Opened<'t, 'v, f64, PerParticle>,
+}
+
+/// The pair pass over every slab, compiled for one combination of optional physics: bond
+/// states (`BONDS`), tangential springs and torques (`FRICTION`), conduction (`HEAT`). A target
+/// the combination leaves out is ignored even if present. A slab visit that records its near
+/// list sifts every slot of its owners; the others sift their near lists only.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+    model: &Model,
+    particles: &Particles,
+    list: &NeighborList,
+    (near, refresh_near): (&mut NearPairs, bool),
+    omega: Option<&[DVec3]>,
+    targets: &PairTargets<'_>,
+    set: InstructionSet,
+    parallel: bool,
+) -> ForceSummary {
+    let near_skin = list.near_skin();
+    list.for_each_slab_near(
+        parallel,
+        near,
+        refresh_near,
+        ForceSummary::default(),
+        |summary, slab| {
+            let targets = &targets.open::<BONDS, FRICTION, HEAT>(slab);
+            let mut batch = Batch::new(model, slab);
+            if slab.records_near() {
+                for window in slab.windows() {
+                    sift::<BONDS, FRICTION>(
+                        model, particles, targets, &window, near_skin, &mut batch,
+                    );
+                    if batch.kept_count >= KEPT_PER_ROUND {
+                        handle_kept::<BONDS, FRICTION, HEAT>(
+                            model, particles, omega, targets, &mut batch, set, summary,
+                        );
+                    }
+                }
+            } else {
+                let count = slab.near_count();
+                for start in (0..count).step_by(NEAR_PER_ROUND) {
+                    let entries = slab.near_pairs(start..(start + NEAR_PER_ROUND).min(count));
+                    sift_near::<BONDS, FRICTION>(model, particles, targets, entries, &mut batch);
+                    handle_kept::<BONDS, FRICTION, HEAT>(
+                        model, particles, omega, targets, &mut batch, set, summary,
+                    );
+                }
+            }
+            handle_kept::<BONDS, FRICTION, HEAT>(
+                model, particles, omega, targets, &mut batch, set, summary,
+            );
+            batch.flush::<BONDS, FRICTION, HEAT>(model, particles, targets, set, summary);
+            batch.finish_owner(targets);
+            batch.release_buffers();
+        },
+        ForceSummary::merge,
+    )
+}
+
+/// The particle arrays the pair pass reads, each cut to the particle count. A pair's two indices
+/// checked once against that count ([`Self::pair`]) let the compiler drop the bounds checks of
+/// every array indexed by them (each array's length is then known to be the count): one compare
+/// per pair instead of one per load. In the near sift and the lanes' fill this made the 19.2k
+/// LIGGGHTS bed's step 3.9-4.6 % faster at 1 thread, 3.8-4.1 % at 2, 4.3-4.7 % with heat.
+struct ParticleReads<'p> {
+    count: usize,
+    position: &'p [DVec3],
+    radius: &'p [f64],
+    mass: &'p [f64],
+    velocity: &'p [DVec3],
+    material: &'p [u16],
+}
+
+impl<'p> ParticleReads<'p> {
+    /// The arrays of `particles`.
+    #[inline(always)]
+    fn of(particles: &'p Particles) -> Self {
+        let count = particles.len();
+        Self {
+            count,
+            position: &particles.position[..count],
+            radius: &particles.radius[..count],
+            mass: &particles.mass[..count],
+            velocity: &particles.velocity[..count],
+            material: &particles.material[..count],
+        }
+    }
+
+    /// Another per-particle array, cut to the particle count.
+    #[inline(always)]
+    fn cut<'a, T>(&self, values: &'a [T]) -> &'a [T] {
+        &values[..self.count]
+    }
+
+    /// The indices of `owner` and `partner`.
+    ///
+    /// # Panics
+    /// If either is not a particle (the neighbour list names only particles).
+    #[inline(always)]
+    fn pair(&self, owner: Member<'_>, partner: Member<'_>) -> (usize, usize) {
+        let (a, b) = (owner.index(), partner.index());
+        assert!(a.max(b) < self.count, "a pair beyond the particles");
+        (a, b)
+    }
+}
+
+/// Near-list entries sifted before their kept slots are handled: about a hundred kept slots, as
+/// [`KEPT_PER_ROUND`] owners give when all slots are sifted.
+const NEAR_PER_ROUND: usize = 256;
+
+/// Appends the near-list entries that need work to the batch's kept slots, as [`sift`] does
+/// for a window's slots: without a branch on whether a pair touches. The owner changes from
+/// entry to entry here, so its position is loaded each time (it is in cache: the entries come
+/// owner by owner).
+#[inline(always)]
+fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
+    model: &Model,
+    particles: &Particles,
+    targets: &OpenTargets<'_, 's>,
+    entries: impl ExactSizeIterator<Item = NearTokens<'s>>,
+    batch: &mut Batch<'_, 's>,
+) {
+    // Known at compile time to be `None` where the instantiation leaves the physics out.
+    let states = targets.states.as_ref().filter(|_| BONDS);
+    let histories = targets.tangential.as_ref().filter(|_| FRICTION);
+    let mut count = batch.kept_count;
+    let room = count + entries.len();
+    if batch.kept.len() < room {
+        batch.kept.resize(room, None);
+    }
+    let reads = ParticleReads::of(particles);
+    for NearTokens {
+        owner,
+        slot,
+        partner,
+        minimum_image,
+    } in entries
+    {
+        let (a, b) = reads.pair(owner, partner);
+        let periodic = model.periodic.as_ref().filter(|_| minimum_image);
+        let separation = pair_separation(periodic, reads.position, a, b);
+        let reach = reads.radius[a] + reads.radius[b];
+        let touching = separation.length_squared() < reach * reach;
+        let kept_slot = KeptSlot {
+            owner,
+            partner,
+            slot,
+            separation,
+        };
+        count = keep(
+            &mut batch.kept,
+            count,
+            kept_slot,
+            touching,
+            states,
+            histories,
+        );
+    }
+    batch.kept_count = count;
+}
+
+/// What happened at one slot, in the order the owners and their slots come: what the write-back
+/// ([`Batch::flush`]) replays, so that every sum is formed in the list's order.
+#[derive(Debug, Clone, Copy)]
+enum Event<'s> {
+    /// A touching pair, whose laws run in the next lane of the batch.
+    Contact {
+        owner: Member<'s>,
+        partner: Member<'s>,
+        slot: Slot<'s>,
+    },
+    /// A pair that came apart while its tangential spring held `energy` \[J\]: lost, half to
+    /// each particle.
+    Released {
+        owner: Member<'s>,
+        partner: Member<'s>,
+        energy: f64,
+    },
+}
+
+/// What one owner's pairs add to the owner itself, summed over its slots in order and written
+/// once when the next owner begins.
+#[derive(Debug, Clone, Copy)]
+struct OwnerSums<'s> {
+    owner: Member<'s>,
+    force: DVec3,
+    lost: f64,
+    torque: DVec3,
+    heat: f64,
+    conductance: f64,
+}
+
+/// A slab's contacts on their way through the kernel: the lanes being filled, the events of the
+/// slots found since the last flush, and the sums of the owner being written back.
+struct Batch<'r, 's> {
+    slab: &'r SlabVisit<'s>,
+    lanes: ContactLanes,
+    filled: usize,
+    events: Vec<Event<'s>>,
+    owner: Option<OwnerSums<'s>>,
+    /// The slots that need work, of the owners sifted since the last [`handle_kept`], in order:
+    /// the first `kept_count` entries (those beyond are the sift's scratch).
+    kept: Vec<Option<KeptSlot<'s>>>,
+    kept_count: usize,
+}
+
+/// A slot that needs work: touching, or holding a bond state or a spring.
+#[derive(Debug, Clone, Copy)]
+struct KeptSlot<'s> {
+    owner: Member<'s>,
+    partner: Member<'s>,
+    slot: Slot<'s>,
+    /// x_b − x_a \[m\], as the sift found it (its minimum image where the owner needs one):
+    /// handling the slot does not load the two positions again.
+    separation: DVec3,
+}
+
+/// Owners' kept slots gathered before they are handled. Handling many owners' slots in one loop,
+/// rather than each owner's in its own, spares the branch predictor a loop exit per owner, which
+/// it cannot foresee (an owner has 0-3 contacts).
+const KEPT_PER_ROUND: usize = 64;
+
+/// The buffers of a [`Batch`] between slab visits, empty, kept per thread: a visit takes them
+/// over instead of allocating its own (with two threads, the allocator's locks and the frees of
+/// another thread's blocks cost 3 % of the step). Their elements hold a visit's tokens, so an
+/// empty buffer changes its element type's lifetime on the way in and out ([`recycle`]).
+#[derive(Default)]
+struct BatchBuffers {
+    events: Vec<Event<'static>>,
+    kept: Vec<Option<KeptSlot<'static>>>,
+}
+
+thread_local! {
+    static BATCH_BUFFERS: std::cell::RefCell<BatchBuffers> =
+        std::cell::RefCell::new(BatchBuffers::default());
+}
+
+/// An empty vector of `T` as one of `U`, of the same size and alignment: the standard library
+/// collects a vector's `into_iter().map(..)` into the vector's own allocation then, so the
+/// capacity carries over (if it did not, the buffer would only be allocated anew).
+fn recycle<T, U>(mut empty: Vec<T>) -> Vec<U> {
+    debug_assert_eq!(std::mem::size_of::<T>(), std::mem::size_of::<U>());
+    debug_assert_eq!(std::mem::align_of::<T>(), std::mem::align_of::<U>());
+    empty.clear();
+    empty
+        .into_iter()
+        .map(|_| unreachable!("the vector is empty"))
+        .collect()
+}
+
+impl<'r, 's> Batch<'r, 's> {
+    /// A batch for the visit of `slab` with `model`'s contacts, with this thread's buffers.
+    fn new(model: &Model, slab: &'r SlabVisit<'s>) -> Self {
+        let buffers = BATCH_BUFFERS.with_borrow_mut(std::mem::take);
+        Self {
+            slab,
+            lanes: ContactLanes::for_model(model),
+            filled: 0,
+            events: recycle(buffers.events),
+            owner: None,
+            kept: recycle(buffers.kept),
+            kept_count: 0,
+        }
+    }
+
+    /// Gives the buffers back to the thread, for its next visit.
+    fn release_buffers(self) {
+        let buffers = BatchBuffers {
+            events: recycle(self.events),
+            kept: recycle(self.kept),
+        };
+        BATCH_BUFFERS.with_borrow_mut(|held| *held = buffers);
+    }
+
+    /// Runs the laws of the filled lanes and writes back every event since the last flush, in
+    /// order: the partners' shares at once, the owners' summed per owner.
+    #[inline]
+    fn flush<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+        &mut self,
+        model: &Model,
+        particles: &Particles,
+        targets: &OpenTargets<'_, 's>,
+        set: InstructionSet,
+        summary: &mut ForceSummary,
+    ) {
+        if self.filled > 0 {
+            lanes::run::<BONDS, FRICTION>(set, model, &mut self.lanes);
+        }
+        let states = targets.states.as_ref().filter(|_| BONDS);
+        let histories = targets.tangential.as_ref().filter(|_| FRICTION);
+        let torque = targets.torque.as_ref().filter(|_| FRICTION);
+        let own_slab = self.slab.own_slab();
+        let reads = ParticleReads::of(particles);
+        // With its temperatures cut to the particle count (one bounds check per pair).
+        let heat = targets
+            .heat
+            .as_ref()
+            .filter(|_| HEAT)
+            .map(|h| (h, reads.cut(h.temperature)));
+        let mut lane = 0;
+        for k in 0..self.events.len() {
+            match self.events[k] {
+                Event::Released {
+                    owner,
+                    partner,
+                    energy,
+                } => {
+                    self.begin_owner(owner, targets).lost += 0.5 * energy;
+                    targets.lost.update(partner, |l| l + 0.5 * energy);
+                }
+                Event::Contact {
+                    owner,
+                    partner,
+                    slot,
+                } => {
+                    let out = self.lanes.output(lane);
+                    let [r_a, r_b] = self.lanes.radii(lane);
+                    let state_before = self.lanes.state_before(lane);
+                    lane += 1;
+                    let (a, b) = reads.pair(owner, partner);
+                    summary.observe_overlap(out.overlap_ratio, if r_a <= r_b { a } else { b });
+                    if let Some(states) = states {
+                        if out.state != state_before {
+                            states.write(slot, out.state);
+                        }
+                    }
+                    let sums = self.begin_owner(owner, targets);
+                    if let Some(histories) = histories {
+                        histories.write(own_slab, slot, out.spring);
+                        sums.torque += out.torque_on_a;
+                        if let Some(torque) = torque {
+                            torque.update(partner, |t| t + out.torque_on_b);
+                        }
+                    }
+                    sums.force += out.force_on_a;
+                    sums.lost += 0.5 * out.lost;
+                    targets.force.update(partner, |f| f - out.force_on_a);
+                    targets.lost.update(partner, |l| l + 0.5 * out.lost);
+                    if let Some((h, temperature)) = heat {
+                        let conductance = thermal::pair_conductance(
+                            h.model,
+                            [reads.material[a], reads.material[b]],
+                            [r_a, r_b],
+                            out.overlap,
+                            out.effective_radius,
+                        );
+                        let flow = conductance * (temperature[b] - temperature[a]);
+                        sums.heat += flow;
+                        sums.conductance += conductance;
+                        h.heat_flow.update(partner, |q| q - flow);
+                        h.total_conductance.update(partner, |g| g + conductance);
+                    }
+                }
+            }
+        }
+        self.events.clear();
+        self.filled = 0;
+    }
+
+    /// The sums of `owner`, begun if it is not the owner being written back (whose sums are
+    /// then written first).
+    #[inline]
+    fn begin_owner(
+        &mut self,
+        owner: Member<'s>,
+        targets: &OpenTargets<'_, 's>,
+    ) -> &mut OwnerSums<'s> {
+        if self
+            .owner
+            .is_none_or(|sums| sums.owner.index() != owner.index())
+        {
+            self.finish_owner(targets);
+            self.owner = Some(OwnerSums {
+                owner,
+                force: DVec3::ZERO,
+                lost: 0.0,
+                torque: DVec3::ZERO,
+                heat: 0.0,
+                conductance: 0.0,
+            });
+        }
+        self.owner.as_mut().expect("begun above")
+    }
+
+    /// Writes the sums of the owner being written back, if any.
+    #[inline]
+    fn finish_owner(&mut self, targets: &OpenTargets<'_, 's>) {
+        if let Some(sums) = self.owner.take() {
+            targets.force.update(sums.owner, |f| f + sums.force);
+            targets.lost.update(sums.owner, |l| l + sums.lost);
+            if let Some(torque) = &targets.torque {
+                torque.update(sums.owner, |t| t + sums.torque);
+            }
+            if let Some(h) = &targets.heat {
+                h.heat_flow.update(sums.owner, |q| q + sums.heat);
+                h.total_conductance
+                    .update(sums.owner, |g| g + sums.conductance);
+            }
+        }
+    }
+}
+
+/// Appends the window owner's slots that need work to the batch's kept slots: those touching,
+/// and those apart that still hold a bond state or a spring. Most candidates are neither, and
+/// whether one touches is a coin toss for the branch predictor (about one in five does on a
+/// packed bed): the slots are sifted without a branch, each written to the list and kept by
+/// advancing its end. The slots whose gap is below `near_skin` go into the slab's near list
+/// (this sift runs only where the visit records it).
+#[inline(always)]
+fn sift<'s, const BONDS: bool, const FRICTION: bool>(
+    model: &Model,
+    particles: &Particles,
+    targets: &OpenTargets<'_, 's>,
+    window: &Window<'s>,
+    near_skin: f64,
+    batch: &mut Batch<'_, 's>,
+) {
+    // Known at compile time to be `None` where the instantiation leaves the physics out.
+    let states = targets.states.as_ref().filter(|_| BONDS);
+    let histories = targets.tangential.as_ref().filter(|_| FRICTION);
+    let owner = window.owner();
+    let a = owner.index();
+    let minimum_image = window.needs_minimum_image();
+    let (x_a, r_a) = (particles.position[a], particles.radius[a]);
+    let kept = batch.kept_count;
+    let room = kept + window.slot_count();
+    if batch.kept.len() < room {
+        batch.kept.resize(room, None);
+    }
+    // One loop per image rule, so that the rule is not tested per slot.
+    let slots = SiftedWindow {
+        window,
+        slab: batch.slab,
+        states,
+        histories,
+        x_a,
+        r_a,
+        near_skin,
+    };
+    batch.kept_count = match model.periodic.as_ref().filter(|_| minimum_image) {
+        Some(periodic) => slots.sift(particles, &mut batch.kept, kept, |separation| {
+            periodic.minimum_image(separation)
+        }),
+        None => slots.sift(particles, &mut batch.kept, kept, |separation| separation),
+    };
+}
+
+/// What [`sift`] needs of one window.
+struct SiftedWindow<'w, 's, 't> {
+    window: &'w Window<'s>,
+    slab: &'w SlabVisit<'s>,
+    states: Option<&'t Opened<'t, 's, BondState, PerSlot>>,
+    histories: Option<&'t OpenHistories<'t, 's>>,
+    x_a: DVec3,
+    r_a: f64,
+    near_skin: f64,
+}
+
+impl<'s> SiftedWindow<'_, 's, '_> {
+    /// Writes every slot to `kept[count..]` and keeps those that need work by advancing
+    /// `count`, which it returns, and records the near ones; `image` maps `x_b − x_a` to the
+    /// separation.
+    #[inline(always)]
+    fn sift(
+        &self,
+        particles: &Particles,
+        kept: &mut [Option<KeptSlot<'s>>],
+        mut count: usize,
+        image: impl Fn(DVec3) -> DVec3,
+    ) -> usize {
+        let owner = self.window.owner();
+        for (slot, partner) in self.window.pairs() {
+            let b = partner.index();
+            let separation = image(particles.position[b] - self.x_a);
+            let reach = self.r_a + particles.radius[b];
+            let distance_squared = separation.length_squared();
+            let touching = distance_squared < reach * reach;
+            let kept_slot = KeptSlot {
+                owner,
+                partner,
+                slot,
+                separation,
+            };
+            count = keep(
+                kept,
+                count,
+                kept_slot,
+                touching,
+                self.states,
+                self.histories,
+            );
+            let near_reach = reach + self.near_skin;
+            if distance_squared < near_reach * near_reach {
+                self.slab.record_near(self.window, slot);
+            }
+        }
+        count
+    }
+}
+
+/// The rule of both sifts ([`sift`], [`sift_near`]): writes `slot` to `kept[count]` and returns
+/// the end of the kept slots, advanced past it if the pair touches or its slot holds a bond state
+/// or a spring (which must be cleared when it comes apart). Without a branch: whether a candidate
+/// touches is a coin toss for the branch predictor.
+#[inline(always)]
+fn keep<'s>(
+    kept: &mut [Option<KeptSlot<'s>>],
+    count: usize,
+    slot: KeptSlot<'s>,
+    touching: bool,
+    states: Option<&Opened<'_, 's, BondState, PerSlot>>,
+    histories: Option<&OpenHistories<'_, 's>>,
+) -> usize {
+    let bonded = states.is_some_and(|states| states.read(slot.slot) != BondState::Unbonded);
+    let sprung = histories.is_some_and(|histories| histories.holds(slot.slot));
+    kept[count] = Some(slot);
+    count + usize::from(touching | bonded | sprung)
+}
+
+/// The kept slots of the batch, in order: the pairs apart have their slot state cleared at once;
+/// the touching ones go into the batch's lanes, which run and are written back whenever they are
+/// full.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+    model: &Model,
+    particles: &Particles,
+    omega: Option<&[DVec3]>,
+    targets: &OpenTargets<'_, 's>,
+    batch: &mut Batch<'_, 's>,
+    set: InstructionSet,
+    summary: &mut ForceSummary,
+) {
+    // Known at compile time to be `None` where the instantiation leaves the physics out.
+    let states = targets.states.as_ref().filter(|_| BONDS);
+    let histories = targets.tangential.as_ref().filter(|_| FRICTION);
+    let omega = omega.filter(|_| FRICTION);
+    let heat = targets.heat.as_ref().filter(|_| HEAT);
+    let own_slab = batch.slab.own_slab();
+    let uniform = batch.lanes.uniform_material();
+    let reads = ParticleReads::of(particles);
+    let omega = omega.map(|omega| reads.cut(omega));
+    let melted = heat.map(|h| reads.cut(h.melted));
+    for k in 0..batch.kept_count {
+        let KeptSlot {
+            owner,
+            partner,
+            slot: p,
+            separation,
+        } = batch.kept[k].expect("the sift writes every entry it keeps");
+        let (a, b) = reads.pair(owner, partner);
+        let (r_a, r_b) = (reads.radius[a], reads.radius[b]);
+        let reach = r_a + r_b;
+        if separation.length_squared() >= reach * reach {
+            // Apart: no square root, no division, and the slot's state cleared.
+            if let Some(states) = states {
+                if states.read(p) != BondState::Unbonded {
+                    states.write(p, BondState::Unbonded);
+                }
+            }
+            if let Some(histories) = histories {
+                // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is
+                // lost, half to each particle.
+                let held = histories.release(own_slab, p);
+                if held.spring_energy != 0.0 {
+                    batch.events.push(Event::Released {
+                        owner,
+                        partner,
+                        energy: held.spring_energy,
+                    });
+                }
+            }
+            continue;
+        }
+        debug_assert!(
+            model
+                .periodic
+                .is_none_or(|p| p.minimum_image(separation) == separation),
+            "a touching pair of owner {a} across a periodic face, which the list did not flag"
+        );
+        // Loop-invariant with one material: then no material is loaded.
+        let material = uniform
+            .unwrap_or_else(|| PairMaterial::of(model, reads.material[a], reads.material[b]));
+        let melted = melted.map_or((false, false), |melted| (melted[a], melted[b]));
+        let (angular_velocity, held) = match (histories, omega) {
+            (Some(histories), Some(omega)) => ([omega[a], omega[b]], histories.read(own_slab, p)),
+            _ => ([DVec3::ZERO; 2], TangentialSpring::default()),
+        };
+        let input = ContactInput {
+            separation,
+            radius: [r_a, r_b],
+            mass: [reads.mass[a], reads.mass[b]],
+            velocity: [reads.velocity[a], reads.velocity[b]],
+            effective_modulus: material.effective_modulus,
+            damping_ratio: material.damping_ratio,
+            materials: material.materials,
+            state: states.map_or(BondState::Unbonded, |states| states.read(p)),
+            criterion: model.bond_criterion.holds(melted.0, melted.1),
+            angular_velocity,
+            friction: material.friction,
+            held,
+        };
+        batch.lanes.set::<BONDS, FRICTION>(batch.filled, &input);
+        batch.filled += 1;
+        batch.events.push(Event::Contact {
+            owner,
+            partner,
+            slot: p,
+        });
+        if batch.filled == LANES {
+            batch.flush::<BONDS, FRICTION, HEAT>(model, particles, targets, set, summary);
+        }
+    }
+    batch.kept_count = 0;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The batch buffers' reuse rests on `recycle` keeping the allocation: a change of the
+    /// standard library that lost it would cost an allocation per slab visit, which this test
+    /// would show.
+    #[test]
+    fn recycling_an_empty_buffer_keeps_its_allocation() {
+        let mut numbers: Vec<u64> = Vec::with_capacity(100);
+        numbers.extend(0..50);
+        let address = numbers.as_ptr() as usize;
+        let floats: Vec<f64> = recycle(numbers);
+        assert!(floats.is_empty());
+        assert!(floats.capacity() >= 100, "capacity {}", floats.capacity());
+        assert_eq!(floats.as_ptr() as usize, address);
+    }
+}
