@@ -141,19 +141,17 @@ fn travel_within(travel: f64, limit: f64) -> bool {
 }
 
 impl Simulation {
-    /// Sets up the neighbour list and the forces at t = 0.
-    #[must_use]
-    pub fn new(model: Model, particles: Particles) -> Self {
+    /// A simulation of `particles` under `model` at step 0, with these optional states and
+    /// every other part empty: the neighbour list not built yet, no forces taken, nothing
+    /// removed. [`Simulation::new`] and [`Simulation::resume`] go on from here.
+    fn assemble(
+        model: Model,
+        particles: Particles,
+        thermal: Option<ThermalState>,
+        rotation: Option<Rotation>,
+    ) -> Self {
         let neighbors = NeighborList::new(model.skin, model.periodic);
-        let thermal = model
-            .thermal
-            .as_ref()
-            .map(|t| ThermalState::new(t, &particles));
-        let rotation = model
-            .friction
-            .as_ref()
-            .map(|_| Rotation::new(particles.len(), model.walls.len()));
-        let mut sim = Self {
+        Self {
             model,
             particles,
             neighbors,
@@ -177,7 +175,21 @@ impl Simulation {
             removed: Removed::default(),
             step: 0,
             time: 0.0,
-        };
+        }
+    }
+
+    /// Sets up the neighbour list and the forces at t = 0.
+    #[must_use]
+    pub fn new(model: Model, particles: Particles) -> Self {
+        let thermal = model
+            .thermal
+            .as_ref()
+            .map(|t| ThermalState::new(t, &particles));
+        let rotation = model
+            .friction
+            .as_ref()
+            .map(|_| Rotation::new(particles.len(), model.walls.len()));
+        let mut sim = Self::assemble(model, particles, thermal, rotation);
         sim.rebuild_neighbors();
         if sim.model.deposition.is_none() {
             // With a deposition the run starts from the settled bed (`restart_clock`).

@@ -3,14 +3,12 @@
 //! taken from a run ([`Simulation::restart_state`]) and given back to a new one
 //! ([`Simulation::resume`]), so that a resumed run continues bit for bit.
 
-use super::{Removed, Simulation, StartEnergies};
+use super::{Removed, Simulation};
 use crate::contact::BondState;
 use crate::contact::tangential::TangentialSpring;
-use crate::forces::{self, ForceSummary};
 use crate::laser;
 use crate::model::Model;
-use crate::neighbor::{HeldPairs, NearPairs, NeighborList};
-use crate::pair_history::TangentialHistories;
+use crate::neighbor::HeldPairs;
 use crate::particles::{Particles, Rotation};
 use crate::thermal::{self, ThermalState};
 use crate::wall_history::WallSprings;
@@ -237,31 +235,10 @@ impl Simulation {
             }
         };
         let rotation = Self::resumed_rotation(&model, n, state.rotation.as_ref())?;
-        let mut sim = Self {
-            neighbors: NeighborList::new(model.skin, model.periodic),
-            model,
-            particles,
-            bond_states: Vec::new(),
-            thermal,
-            laser_snapshot: state.laser.unwrap_or_default(),
-            force_summary: ForceSummary::default(),
-            non_finite_force: None,
-            peak_overlap_ratio: 0.0,
-            start: StartEnergies::default(),
-            rotation,
-            tangential: TangentialHistories::default(),
-            near: NearPairs::default(),
-            near_travel: 0.0,
-            near_refreshes: 0,
-            build_travel: f64::INFINITY,
-            displacement_checks: 0,
-            rebuild_bound: true,
-            near_lists: true,
-            walls: forces::WallCandidates::default(),
-            removed: state.removed,
-            step: state.step,
-            time: 0.0,
-        };
+        let mut sim = Self::assemble(model, particles, thermal, rotation);
+        sim.laser_snapshot = state.laser.unwrap_or_default();
+        sim.removed = state.removed;
+        sim.step = state.step;
         #[allow(clippy::cast_precision_loss)]
         let time = sim.step as f64 * sim.model.dt;
         sim.time = time;
