@@ -15,11 +15,12 @@ use glam::DVec3;
 use crate::contact::rolling;
 use crate::particles::{Particles, Rotation};
 use crate::team::{PARTICLES_PER_ITEM as CHUNK, optional_items};
+use crate::thermal::HeatSums;
 
 /// The per-particle sums the force pass adds into besides the forces and torques (with
 /// `[thermal]`: the heat flows \[W\] and the total conductances \[W/K\]), which [`kick_drift`]
 /// leaves at zero with them.
-pub type Sums<'a> = Option<(&'a mut [f64], &'a mut [f64])>;
+pub type Sums<'a> = Option<&'a mut [HeatSums]>;
 
 /// The opening half of a step, in one pass over the particles: the half kick and the drift
 /// (M.30, M.31) and, with rotation, the half kick of ω (M.62). The half kick is the last reader
@@ -48,7 +49,6 @@ pub fn kick_drift(
     let (omega, torque) = rotation
         .map(|r| (r.angular_velocity.as_mut_slice(), r.torque.as_mut_slice()))
         .unzip();
-    let (first_sum, second_sum) = sums.unzip();
     let chunks: Vec<_> = position
         .chunks_mut(CHUNK)
         .zip(velocity.chunks_mut(CHUNK))
@@ -57,7 +57,7 @@ pub fn kick_drift(
                 .chunks_mut(CHUNK)
                 .zip(optional_items(omega).zip(optional_items(torque))),
         )
-        .zip(optional_items(first_sum).zip(optional_items(second_sum)))
+        .zip(optional_items(sums))
         .collect();
     let max_speed_squared = each_chunk(
         chunks,
@@ -90,9 +90,8 @@ pub fn kick_drift(
                 kick_angular(w, t, first, mass, radius, dt);
                 t.fill(DVec3::ZERO);
             }
-            if let (Some(a), Some(b)) = sums {
-                a.fill(0.0);
-                b.fill(0.0);
+            if let Some(sums) = sums {
+                sums.fill(HeatSums::default());
             }
             max_speed_squared
         },
@@ -324,9 +323,13 @@ mod tests {
             for far in [3, count - 2] {
                 let (mut particles, mut rotation) = row(count);
                 let dt = 0.5;
-                let mut heat_flow: Vec<f64> = (0..count).map(|k| k as f64 + 1.0).collect();
-                let mut conductance = heat_flow.clone();
-                let sums = Some((heat_flow.as_mut_slice(), conductance.as_mut_slice()));
+                let mut heat_sums: Vec<HeatSums> = (0..count)
+                    .map(|k| HeatSums {
+                        flow: k as f64 + 1.0,
+                        conductance: k as f64 + 1.0,
+                    })
+                    .collect();
+                let sums = Some(heat_sums.as_mut_slice());
                 let gravity = DVec3::new(0.0, 0.0, -2.0);
                 let drift = kick_drift(&mut particles, Some(&mut rotation), sums, (dt, gravity));
                 // The fastest particle is the last, |v| = (count − 1) √(1 + 1/16); the square
@@ -347,7 +350,7 @@ mod tests {
                 // torques at zero.
                 assert!(particles.force.iter().all(|f| *f == gravity));
                 assert!(rotation.torque.iter().all(|t| *t == DVec3::ZERO));
-                assert!(heat_flow.iter().chain(&conductance).all(|q| *q == 0.0));
+                assert!(heat_sums.iter().all(|s| *s == HeatSums::default()));
                 // A force pass fills them again; the closing kick: v_z and ω grow by as much.
                 let (refilled, _) = row(count);
                 particles.force.clone_from(&refilled.force);

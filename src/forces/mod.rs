@@ -29,7 +29,7 @@ use crate::pair_history::TangentialHistories;
 use crate::particles::{Particles, Rotation};
 use crate::periodic::Periodic;
 use crate::scatter::Scatter;
-use crate::thermal::{self, ThermalModel};
+use crate::thermal::{self, HeatSums, ThermalModel};
 
 mod lanes;
 mod pair_pass;
@@ -101,12 +101,10 @@ pub struct PassHeat<'a> {
     pub laser_power: Option<&'a [f64]>,
     /// Heat capacities [J/K].
     pub heat_capacity: &'a [f64],
-    /// Out: net heat flow \[W\].
-    pub heat_flow: &'a mut [f64],
+    /// Out: net heat flow \[W\] and total conductance G_i [W/K].
+    pub sums: &'a mut [HeatSums],
     /// Out: heat flow from walls, gas and surroundings \[W\].
     pub boundary_flow: &'a mut [f64],
-    /// Out: total conductance G_i [W/K].
-    pub total_conductance: &'a mut [f64],
 }
 
 /// What the force pass needs and fills for scenes with friction or rolling resistance.
@@ -253,8 +251,7 @@ pub fn compute(
         fill(&mut r.torque, DVec3::ZERO, parallel);
     }
     if let Some(h) = heat.as_mut().filter(|_| !cleared) {
-        fill(h.heat_flow, 0.0, parallel);
-        fill(h.total_conductance, 0.0, parallel);
+        fill(h.sums, HeatSums::default(), parallel);
     }
     let pairs = {
         let state = &*particles;
@@ -269,8 +266,7 @@ pub fn compute(
             model: h.model,
             melted: h.melted,
             temperature: h.temperature,
-            heat_flow: Scatter::new(h.heat_flow),
-            total_conductance: Scatter::new(h.total_conductance),
+            sums: Scatter::new(h.sums),
         });
         let targets = PairTargets {
             force: Scatter::new(&mut forces),
@@ -321,7 +317,7 @@ pub fn compute(
         .is_some_and(|h| h.laser_power.is_some() || h.model.has_boundary_exchange());
     let listed = (!every_particle).then_some(walls.particles.as_slice());
     let heat_rate = heat.as_ref().filter(|_| listed.is_some()).map_or(0.0, |h| {
-        thermal::max_heat_rate(h.total_conductance, h.heat_capacity, parallel)
+        thermal::max_heat_rate(h.sums, h.heat_capacity, parallel)
     });
     // As for the pair pass: one compiled particle pass per combination of optional physics.
     let own = match (rotation.is_some(), heat.is_some()) {

@@ -22,7 +22,7 @@ use crate::particles::Particles;
 use crate::scatter::{
     Member, NearTokens, Opened, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
 };
-use crate::thermal::{self, ThermalModel};
+use crate::thermal::{self, HeatSums, ThermalModel};
 
 /// What the pair pass writes, shared by the concurrent slabs of a colour phase.
 pub(super) struct PairTargets<'a> {
@@ -40,8 +40,7 @@ pub(super) struct HeatTargets<'a> {
     pub(super) model: &'a ThermalModel,
     pub(super) melted: &'a [bool],
     pub(super) temperature: &'a [f64],
-    pub(super) heat_flow: Scatter<'a, f64, PerParticle>,
-    pub(super) total_conductance: Scatter<'a, f64, PerParticle>,
+    pub(super) sums: Scatter<'a, HeatSums, PerParticle>,
 }
 
 impl PairTargets<'_> {
@@ -74,8 +73,7 @@ impl PairTargets<'_> {
                 model: h.model,
                 melted: h.melted,
                 temperature: h.temperature,
-                heat_flow: h.heat_flow.open(visit),
-                total_conductance: h.total_conductance.open(visit),
+                sums: h.sums.open(visit),
             }),
         }
     }
@@ -97,8 +95,7 @@ struct OpenHeat<'t, 'v> {
     model: &'t ThermalModel,
     melted: &'t [bool],
     temperature: &'t [f64],
-    heat_flow: Opened<'t, 'v, f64, PerParticle>,
-    total_conductance: Opened<'t, 'v, f64, PerParticle>,
+    sums: Opened<'t, 'v, HeatSums, PerParticle>,
 }
 
 /// The pair pass over every slab, compiled for one combination of optional physics: bond
@@ -447,8 +444,7 @@ impl<'r, 's> Batch<'r, 's> {
                         let flow = conductance * (temperature[b] - temperature[a]);
                         sums.heat += flow;
                         sums.conductance += conductance;
-                        h.heat_flow.update(partner, |q| q - flow);
-                        h.total_conductance.update(partner, |g| g + conductance);
+                        h.sums.update(partner, |s| s.add(-flow, conductance));
                     }
                 }
             }
@@ -492,9 +488,8 @@ impl<'r, 's> Batch<'r, 's> {
                 torque.update(sums.owner, |t| t + sums.torque);
             }
             if let Some(h) = &targets.heat {
-                h.heat_flow.update(sums.owner, |q| q + sums.heat);
-                h.total_conductance
-                    .update(sums.owner, |g| g + sums.conductance);
+                h.sums
+                    .update(sums.owner, |s| s.add(sums.heat, sums.conductance));
             }
         }
     }

@@ -10,7 +10,7 @@ use crate::contact::{self, PairKinematics, rolling};
 use crate::model::Model;
 use crate::particles::{Particles, Rotation};
 use crate::scatter::{self, PerParticle, Scatter, Window};
-use crate::thermal::{self, ThermalModel};
+use crate::thermal::{self, HeatSums, ThermalModel};
 use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
 
 /// The particle pass: the wall contacts (normal, and with rotation tangential and rolling),
@@ -65,9 +65,8 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         temperature: h.temperature,
         laser_power: h.laser_power,
         heat_capacity: h.heat_capacity,
-        heat_flow: Scatter::new(h.heat_flow),
+        sums: Scatter::new(h.sums),
         boundary_flow: Scatter::new(h.boundary_flow),
-        total_conductance: Scatter::new(h.total_conductance),
     });
     let visit = |summary: &mut ForceSummary,
                  springs: &mut Option<&mut Chunk>,
@@ -162,17 +161,22 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
                 let (outside, outside_conductance) =
                     thermal::boundary_heat(h.model, &model.walls, state, k, h.temperature[k]);
                 h.boundary_flow.update(particle, |_| outside);
-                h.total_conductance
-                    .update(particle, |g| g + outside_conductance);
+                h.sums.update(particle, |s| HeatSums {
+                    conductance: s.conductance + outside_conductance,
+                    ..s
+                });
                 added = Some(outside);
             }
             if let Some(laser_power) = h.laser_power {
                 added = Some(added.unwrap_or(0.0) + laser_power[k]);
             }
             if let Some(added) = added {
-                h.heat_flow.update(particle, |q| q + added);
+                h.sums.update(particle, |s| HeatSums {
+                    flow: s.flow + added,
+                    ..s
+                });
             }
-            h.total_conductance.read(particle) / h.heat_capacity[k]
+            h.sums.read(particle).conductance / h.heat_capacity[k]
         });
         summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
         summary.observe_overlap(max_overlap / state.radius[k], k);
@@ -203,7 +207,7 @@ struct ParticleHeat<'a> {
     temperature: &'a [f64],
     laser_power: Option<&'a [f64]>,
     heat_capacity: &'a [f64],
-    heat_flow: Scatter<'a, f64, PerParticle>,
+    /// Net heat flow \[W\] and total conductance [W/K].
+    sums: Scatter<'a, HeatSums, PerParticle>,
     boundary_flow: Scatter<'a, f64, PerParticle>,
-    total_conductance: Scatter<'a, f64, PerParticle>,
 }

@@ -503,9 +503,8 @@ impl Simulation {
                     melted,
                     laser_power,
                     heat_capacity,
-                    heat_flow,
+                    heat_sums,
                     boundary_flow,
-                    total_conductance,
                     ..
                 } = state;
                 Some(forces::PassHeat {
@@ -514,9 +513,8 @@ impl Simulation {
                     temperature,
                     laser_power: self.model.laser.is_some().then_some(laser_power.as_slice()),
                     heat_capacity,
-                    heat_flow,
+                    sums: heat_sums,
                     boundary_flow,
-                    total_conductance,
                 })
             }
             _ => None,
@@ -622,12 +620,7 @@ impl Simulation {
     pub fn step(&mut self) {
         let dt = self.model.dt;
         // The force pass's heat sums are zeroed with the forces (its `cleared`).
-        let sums = self.thermal.as_mut().map(|t| {
-            (
-                t.heat_flow.as_mut_slice(),
-                t.total_conductance.as_mut_slice(),
-            )
-        });
+        let sums = self.thermal.as_mut().map(|t| t.heat_sums.as_mut_slice());
         let drift = integrate::kick_drift(
             &mut self.particles,
             self.rotation.as_mut(),

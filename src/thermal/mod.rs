@@ -175,6 +175,29 @@ impl ThermalModel {
     }
 }
 
+/// What the contacts, walls, gas and laser add up for one particle over a substep: the net heat
+/// flow into it \[W\] and its total conductance G_i [W/K] (M.47, M.49). Kept together, so that
+/// the pair pass updates both of a partner's sums with one load and one store of 16 bytes.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct HeatSums {
+    /// Net heat flow into the particle \[W\].
+    pub flow: f64,
+    /// Total conductance G_i [W/K].
+    pub conductance: f64,
+}
+
+impl HeatSums {
+    /// These sums with `flow` \[W\] and `conductance` [W/K] added.
+    #[inline(always)]
+    #[must_use]
+    pub fn add(self, flow: f64, conductance: f64) -> Self {
+        Self {
+            flow: self.flow + flow,
+            conductance: self.conductance + conductance,
+        }
+    }
+}
+
 /// Per-particle thermal state (structure of arrays, like `Particles`).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ThermalState {
@@ -195,11 +218,12 @@ pub struct ThermalState {
     /// Per pair slot of the neighbour list: contact conductance H [W/K] of this step, stored
     /// only by a step that takes more than one thermal substep ([`advance`]); stale otherwise.
     pub conductance: Vec<f64>,
-    /// Net heat flow into each particle at the start of the current substep \[W\].
-    pub(crate) heat_flow: Vec<f64>,
-    /// Per particle: total conductance G_i [W/K] (M.49).
-    pub(crate) total_conductance: Vec<f64>,
-    /// Heat flow from walls, gas and surroundings into each particle \[W\] (part of `heat_flow`).
+    /// Per particle: the net heat flow into it at the start of the current substep and its
+    /// total conductance G_i (M.49), side by side: the pair pass adds to both of a partner's at
+    /// once.
+    pub(crate) heat_sums: Vec<HeatSums>,
+    /// Heat flow from walls, gas and surroundings into each particle \[W\] (part of the net
+    /// flow).
     pub(crate) boundary_flow: Vec<f64>,
     /// Per particle: laser energy absorbed since the start \[J\]. Kept per particle, so the pass
     /// that adds to it writes only its own slot; totals are summed when asked for.
@@ -228,8 +252,7 @@ impl ThermalState {
         select(&mut self.melting_point, order);
         select(&mut self.melted, order);
         select(&mut self.laser_power, order);
-        select(&mut self.heat_flow, order);
-        select(&mut self.total_conductance, order);
+        select(&mut self.heat_sums, order);
         select(&mut self.boundary_flow, order);
         select(&mut self.laser_energy, order);
         select(&mut self.boundary_energy, order);
@@ -338,8 +361,7 @@ impl ThermalState {
             state.melted.push(t0 >= material.melting_point);
         }
         state.laser_power = vec![0.0; n];
-        state.heat_flow = vec![0.0; n];
-        state.total_conductance = vec![0.0; n];
+        state.heat_sums = vec![HeatSums::default(); n];
         state.boundary_flow = vec![0.0; n];
         state.laser_energy = vec![0.0; n];
         state.boundary_energy = vec![0.0; n];
@@ -495,8 +517,8 @@ pub fn max_stiffness(
 /// Largest `G_i / C_i` [1/s] (M.49) of the total conductances `G_i` [W/K] and heat capacities
 /// `C_i` [J/K] as they stand (0 without particles).
 #[must_use]
-pub fn max_heat_rate(total_conductance: &[f64], heat_capacity: &[f64], parallel: bool) -> f64 {
-    crate::team::largest(parallel, (total_conductance, heat_capacity), |g, c| g / c)
+pub fn max_heat_rate(sums: &[HeatSums], heat_capacity: &[f64], parallel: bool) -> f64 {
+    crate::team::largest(parallel, (sums, heat_capacity), |s, c| s.conductance / c)
 }
 
 /// A chunk's laser and boundary energy accumulators, kept with a laser or boundary exchange.
@@ -571,7 +593,7 @@ pub fn advance(
             melting_point,
             latent_heat,
             melted,
-            heat_flow,
+            heat_sums,
             laser_power,
             boundary_flow,
             laser_energy,
@@ -579,7 +601,7 @@ pub fn advance(
             ..
         } = state;
         let core = |k: usize, e: &mut f64, t: &mut f64, m: &mut bool| {
-            *e += dt_sub * heat_flow[k];
+            *e += dt_sub * heat_sums[k].flow;
             *t = temperature_from_enthalpy(*e, heat_capacity[k], melting_point[k], latent_heat[k]);
             *m |= *t >= melting_point[k];
         };
@@ -686,25 +708,22 @@ fn heat_flows(
         temperature,
         conductance,
         laser_power,
-        heat_flow,
-        total_conductance,
+        heat_sums,
         boundary_flow,
         heat_capacity,
         ..
     } = state;
     let temperature = &*temperature;
     let parallel = crate::worth_parallel(temperature.len());
-    heat_flow.fill(0.0);
-    total_conductance.fill(0.0);
+    heat_sums.fill(HeatSums::default());
     {
-        let flow: Scatter<'_, f64, PerParticle> = Scatter::new(heat_flow);
-        let sum: Scatter<'_, f64, PerParticle> = Scatter::new(total_conductance);
+        let sums: Scatter<'_, HeatSums, PerParticle> = Scatter::new(heat_sums);
         list.for_each_slab(
             parallel,
             (),
             |(), visit| {
                 // Opened for the visit: its writes take no bounds check (`scatter`).
-                let (flow, sum) = (flow.open(visit), sum.open(visit));
+                let sums = sums.open(visit);
                 for window in visit.windows() {
                     let owner = window.owner();
                     let t = temperature[owner.index()];
@@ -715,36 +734,28 @@ fn heat_flows(
                             let q = h * (temperature[partner.index()] - t);
                             flow_a += q;
                             sum_a += h;
-                            flow.update(partner, |f| f - q);
-                            sum.update(partner, |g| g + h);
+                            sums.update(partner, |s| s.add(-q, h));
                         }
                     }
-                    flow.update(owner, |f| f + flow_a);
-                    sum.update(owner, |g| g + sum_a);
+                    sums.update(owner, |s| s.add(flow_a, sum_a));
                 }
             },
             |(), ()| (),
         );
     }
-    let finish = |(k, ((q, g), boundary)): (usize, ((&mut f64, &mut f64), &mut f64))| -> f64 {
+    let finish = |(k, (s, boundary)): (usize, (&mut HeatSums, &mut f64))| -> f64 {
         let (outside, outside_conductance) =
             boundary_heat(model, walls, particles, k, temperature[k]);
         *boundary = outside;
-        *q += outside + laser_power[k];
-        *g += outside_conductance;
-        *g / heat_capacity[k]
+        s.flow += outside + laser_power[k];
+        s.conductance += outside_conductance;
+        s.conductance / heat_capacity[k]
     };
     if parallel {
-        let out = heat_flow
-            .par_iter_mut()
-            .zip(total_conductance.par_iter_mut())
-            .zip(boundary_flow.par_iter_mut());
+        let out = heat_sums.par_iter_mut().zip(boundary_flow.par_iter_mut());
         out.enumerate().map(finish).reduce(|| 0.0, f64::max)
     } else {
-        let out = heat_flow
-            .iter_mut()
-            .zip(total_conductance.iter_mut())
-            .zip(boundary_flow.iter_mut());
+        let out = heat_sums.iter_mut().zip(boundary_flow.iter_mut());
         out.enumerate().map(finish).fold(0.0, f64::max)
     }
 }
