@@ -2,33 +2,55 @@
 //!
 //! A Verlet list holds every pair closer than the cut-off plus the skin: on the LIGGGHTS bed
 //! about 4.8 slots per particle, of which about one touches. Only touching pairs have a
-//! tangential spring, so a 32-byte history per slot would mostly hold zeros. Instead each slot
-//! has a 4-byte entry number ([`NO_ENTRY`] when it is not in contact), and the springs live in
-//! one pool per slab of the list, in the order the pair pass meets them. A pool is a ring: the
-//! pass reads a contact's spring where the last pass left it and appends its new spring behind
-//! the last pass's springs, into the places it has already read ([`Pool`]). The reads and the
-//! writes therefore walk the ring forwards, as the hardware prefetchers like (a pool with reused
-//! entries was measured 15-18 % slower on the 20k bed), new contacts need no free list, and a
-//! pool holds about one pass's springs (two buffers that swapped after each pass held two). One
-//! task visits a slab's owners at a time, in a fixed order, so the pools need no locks and the
-//! entry numbers do not depend on the thread count. A rebuild carries the non-zero springs over
-//! by id key.
+//! tangential spring, so a 32-byte history per slot would mostly hold zeros. Instead the springs
+//! live in one pool per slab of the list, each with its slot, in the order the pair pass meets
+//! them: slot order. A pool is a ring: the pass reads a contact's spring where the last pass
+//! left it and appends its new spring behind the last pass's springs, into the places it has
+//! already read ([`Pool`]). The reads and the writes therefore walk the ring forwards, as the
+//! hardware prefetchers like (a pool with reused entries was measured 15-18 % slower on the 20k
+//! bed), new contacts need no free list, and a pool holds about one pass's springs (two buffers
+//! that swapped after each pass held two). One task visits a slab's owners at a time, in a fixed
+//! order, so the pools need no locks and do not depend on the thread count.
+//!
+//! Because the pass meets the touching pairs in the order the last pass met them, the spring of
+//! a contact is always the first the pass has not read yet, or no spring is: no slot needs an
+//! entry number, and a slot's spring is found without a load per slot. A spring the pass passes
+//! over belongs to a pair that came apart, and is released right there, in slot order
+//! ([`OpenHistories`]). (Each slot held a 4-byte entry number before, which the pair pass's sift
+//! tested for every candidate: 1.6 % of the step, and 20 B per particle.) A rebuild carries the
+//! non-zero springs over by id key.
 
 use rayon::prelude::*;
 
 use crate::contact::tangential::TangentialSpring;
 use crate::neighbor::{HeldPairs, NeighborList};
-use crate::scatter::{Opened, OwnSlab, PerSlab, PerSlot, Scatter, SlabVisit, Slot};
+use crate::scatter::{Opened, OwnSlab, PerSlab, Scatter, SlabVisit, Slot};
 
-/// A slot without a history entry.
-pub const NO_ENTRY: u32 = u32::MAX;
+/// A spring and the slot of its pair.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct HeldSpring {
+    spring: TangentialSpring,
+    /// The pair's slot in the neighbour list.
+    slot: u32,
+}
 
-/// The springs of one slab's contacts, in one ring buffer: those the last pass left (entry numbers
-/// `0..held`, from ring position `base` on, wrapping), followed by those the running pass writes
-/// (entry numbers `0..written` of the next pass).
+/// What [`Pool::meet`] found at the front of the last pass's unread springs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Met {
+    /// The spring of the slot asked for.
+    Spring(TangentialSpring),
+    /// A spring of an earlier slot, which the pass passed over: its pair came apart.
+    PassedOver(HeldSpring),
+    /// The slot holds no spring.
+    Nothing,
+}
+
+/// The springs of one slab's contacts, in one ring buffer, each with its slot: those the last
+/// pass left (numbers `0..held`, from ring position `base` on, wrapping, in ascending slot
+/// order), followed by those the running pass writes (numbers `0..written` of the next pass).
 ///
-/// The pass meets a slab's contacts in the same order at every pass, so it reads the last pass's
-/// springs in ascending entry order, and a spring's place is free for a new one as soon as the
+/// The pass meets a slab's slots in ascending order at every pass, so it reads the last pass's
+/// springs in ascending order too, and a spring's place is free for a new one as soon as the
 /// pass has read past it. The new springs therefore go into the places the pass has read, and a
 /// pool needs room for about one pass's springs, not two: the ring is only ever short of room
 /// for the contacts that formed during the pass, and then it grows (32 B per contact saved:
@@ -36,13 +58,13 @@ pub const NO_ENTRY: u32 = u32::MAX;
 #[derive(Debug, Clone, Default)]
 pub struct Pool {
     /// The ring; its length is its capacity.
-    ring: Vec<TangentialSpring>,
+    ring: Vec<HeldSpring>,
     /// Ring position of the last pass's spring 0.
     base: usize,
     /// The number of springs the last pass left.
     held: usize,
-    /// The last pass's springs below this entry number were read by the running pass (which
-    /// reads in ascending order), so their places may be written.
+    /// The last pass's springs below this number were met by the running pass (which meets
+    /// them in ascending order), so their places may be written.
     read_mark: usize,
     /// The number of springs the running pass wrote.
     written: usize,
@@ -62,44 +84,54 @@ impl Pool {
         }
     }
 
-    /// The last pass's spring `e`, outside a pass.
-    fn get(&self, e: usize) -> TangentialSpring {
-        self.ring[self.position(e)]
-    }
-
-    /// The last pass's springs, in entry order.
-    fn springs(&self) -> impl Iterator<Item = &TangentialSpring> {
+    /// The last pass's springs, in slot order.
+    fn springs(&self) -> impl Iterator<Item = &HeldSpring> {
         (0..self.held).map(|e| &self.ring[self.position(e)])
     }
 
-    /// Reads the last pass's spring `e` in a pass.
-    ///
-    /// # Panics
-    /// If `e` is not above every entry the pass read before: the pass must meet the slab's
-    /// springs in the order the last pass wrote them, or a new spring could overwrite one not
-    /// yet read.
-    #[inline(always)]
-    fn read(&mut self, e: usize) -> TangentialSpring {
-        if e < self.read_mark || e >= self.held {
-            self.read_out_of_order(e);
+    /// The number of the last pass's spring of `slot`, or where it would go (outside a pass).
+    fn find(&self, slot: u32) -> Result<usize, usize> {
+        let (mut low, mut high) = (0, self.held);
+        while low < high {
+            let middle = low + (high - low) / 2;
+            match self.ring[self.position(middle)].slot.cmp(&slot) {
+                std::cmp::Ordering::Less => low = middle + 1,
+                std::cmp::Ordering::Greater => high = middle,
+                std::cmp::Ordering::Equal => return Ok(middle),
+            }
         }
-        self.read_mark = e + 1;
-        self.ring[self.position(e)]
+        Err(low)
     }
 
-    /// Out of line: the panic's formatting kept [`Self::read`] from being inlined.
-    #[cold]
-    #[inline(never)]
-    fn read_out_of_order(&self, e: usize) -> ! {
-        panic!(
-            "tangential spring {e} read out of order (entries below {} were read, {} held)",
-            self.read_mark, self.held
-        );
-    }
-
-    /// Appends `value` for the next pass and returns its entry number.
+    /// Meets `slot` in a pass (the slots met must ascend): the first unread spring, taken if it
+    /// belongs to `slot` or to a slot before it (passed over), left otherwise.
     #[inline(always)]
-    fn append(&mut self, value: TangentialSpring) -> u32 {
+    fn meet(&mut self, slot: u32) -> Met {
+        if self.read_mark < self.held {
+            let next = self.ring[self.position(self.read_mark)];
+            if next.slot <= slot {
+                self.read_mark += 1;
+                return if next.slot == slot {
+                    Met::Spring(next.spring)
+                } else {
+                    Met::PassedOver(next)
+                };
+            }
+        }
+        Met::Nothing
+    }
+
+    /// Takes the first unread spring, if any: at the end of a pass, the springs it did not meet.
+    fn take_unmet(&mut self, (): ()) -> Option<HeldSpring> {
+        (self.read_mark < self.held).then(|| {
+            self.read_mark += 1;
+            self.ring[self.position(self.read_mark - 1)]
+        })
+    }
+
+    /// Appends `value` for the next pass.
+    #[inline(always)]
+    fn append(&mut self, value: HeldSpring) {
         // Its place held the last pass's spring `held + written - capacity`, if that is ≥ 0:
         // free once read.
         if self.held + self.written >= self.read_mark + self.ring.len() {
@@ -111,11 +143,10 @@ impl Pool {
             self.write_position = 0;
         }
         self.written += 1;
-        u32::try_from(self.written - 1).expect("fewer than 2^32 contacts in a slab")
     }
 
     /// A larger ring with the unread springs of the last pass and the running pass's springs at
-    /// the same entry numbers. It holds at least every spring of both (`held + written`), so that
+    /// the same numbers. It holds at least every spring of both (`held + written`), so that
     /// `base + e` stays below twice the capacity, and an eighth more: the number of a slab's
     /// contacts changes slowly. Out of line and cold: it runs a few times per build, while the
     /// pair pass appends once per contact and step, and it kept the append (and the pass's
@@ -125,8 +156,8 @@ impl Pool {
     fn grow(&mut self) {
         let live = self.held + self.written;
         let capacity = live + live / 8 + 16;
-        let mut ring = vec![TangentialSpring::default(); capacity];
-        // Entry `e` of the last pass goes to `e - read_mark`, the running pass's `j` after them.
+        let mut ring = vec![HeldSpring::default(); capacity];
+        // Spring `e` of the last pass goes to `e - read_mark`, the running pass's `j` after them.
         // (`%`, not `position`: the running pass's springs reach past twice the capacity.)
         let old = |seq: usize| self.ring[(self.base + seq) % self.ring.len()];
         for e in self.read_mark..self.held {
@@ -144,20 +175,29 @@ impl Pool {
     /// An empty pool with room for `count` springs and an eighth more.
     fn with_room(count: usize) -> Self {
         Self {
-            ring: vec![TangentialSpring::default(); count + count / 8 + 16],
+            ring: vec![HeldSpring::default(); count + count / 8 + 16],
             ..Self::default()
         }
     }
 
-    /// Adds `value` to the last pass's springs, outside a pass, and returns its entry number.
-    fn push(&mut self, value: TangentialSpring) -> u32 {
+    /// Adds `value` after the last pass's springs, outside a pass.
+    ///
+    /// # Panics
+    /// If its slot is not after theirs (the springs must stay in slot order).
+    fn push(&mut self, value: HeldSpring) {
+        if let Some(last) = self.held.checked_sub(1) {
+            assert!(
+                self.ring[self.position(last)].slot < value.slot,
+                "spring of slot {} added after one of a later slot",
+                value.slot
+            );
+        }
         if self.held == self.ring.len() {
             self.grow();
         }
         let position = self.position(self.held);
         self.ring[position] = value;
         self.held += 1;
-        u32::try_from(self.held - 1).expect("fewer than 2^32 contacts in a slab")
     }
 
     /// The ring position just after the last pass's springs: where a pass writes its first.
@@ -185,13 +225,11 @@ impl Pool {
     }
 }
 
-/// The tangential histories of one build of the neighbour list: an entry number per slot and a
-/// pool per slab (see the module documentation).
+/// The tangential histories of one build of the neighbour list: a pool per slab (see the module
+/// documentation).
 #[derive(Debug, Clone, Default)]
 pub struct TangentialHistories {
-    /// Per slot: the index into its owner's slab's pool, or [`NO_ENTRY`].
-    entry: Vec<u32>,
-    /// Per slab: the histories of the contacts its owners hold.
+    /// Per slab: the springs of the contacts its owners hold, in slot order.
     pools: Vec<Pool>,
 }
 
@@ -200,7 +238,6 @@ impl TangentialHistories {
     #[must_use]
     pub fn new(list: &NeighborList) -> Self {
         Self {
-            entry: vec![NO_ENTRY; list.pair_count()],
             pools: vec![Pool::default(); list.slab_count()],
         }
     }
@@ -208,8 +245,7 @@ impl TangentialHistories {
     /// The histories of the rebuilt `list`: `value(held, turned)` for each pair `held` before the
     /// rebuild that is still in the list (`turned` when its owner changed ends), none for the
     /// rest; `origin[k]` is particle `k`'s index when the pairs were held (see
-    /// [`NeighborList::carry`]). Each slab's pool is filled in parallel, in the order its owners
-    /// are visited.
+    /// [`NeighborList::carry`]). Each slab's pool is filled in parallel, in slot order.
     #[must_use]
     pub fn carry<T: Sync>(
         list: &NeighborList,
@@ -245,10 +281,10 @@ impl TangentialHistories {
             .collect();
         for (pool, slots) in histories.pools.iter_mut().zip(found) {
             *pool = Pool::with_room(slots.len());
-            for (p, e, turned) in slots {
+            for (slot, e, turned) in slots {
                 let spring = value(held.value(e as usize), turned);
                 if spring != TangentialSpring::default() {
-                    histories.entry[p as usize] = pool.push(spring);
+                    pool.push(HeldSpring { spring, slot });
                 }
             }
         }
@@ -259,29 +295,38 @@ impl TangentialHistories {
     /// rotation (an empty store).
     #[must_use]
     pub fn get(&self, list: &NeighborList, p: usize, owner: usize) -> TangentialSpring {
-        match self.entry.get(p) {
-            None | Some(&NO_ENTRY) => TangentialSpring::default(),
-            Some(&e) => self.pools[list.slab_of(owner)].get(e as usize),
-        }
+        self.pools
+            .get(list.slab_of(owner))
+            .and_then(|pool| {
+                let e = pool.find(u32::try_from(p).ok()?).ok()?;
+                Some(pool.ring[pool.position(e)].spring)
+            })
+            .unwrap_or_default()
     }
 
     /// Sets slot `p`'s history (owner `owner`), outside the pair pass. Slots that had no history
     /// must be given theirs in slot order within each slab (as [`NeighborList::pairs`] lists
-    /// them): the pass reads each pool in the order the springs were added.
+    /// them): the pass meets each pool's springs in slot order.
+    ///
+    /// # Panics
+    /// If `p` had no history and a later slot of its slab has one.
     pub fn set(&mut self, list: &NeighborList, p: usize, owner: usize, value: TangentialSpring) {
         let pool = &mut self.pools[list.slab_of(owner)];
-        match self.entry[p] {
-            NO_ENTRY => self.entry[p] = pool.push(value),
-            e => {
-                let position = pool.position(e as usize);
-                pool.ring[position] = value;
+        let slot = u32::try_from(p).expect("fewer than 2^32 slots");
+        match pool.find(slot) {
+            Ok(e) => {
+                let position = pool.position(e);
+                pool.ring[position].spring = value;
             }
+            Err(_) => pool.push(HeldSpring {
+                spring: value,
+                slot,
+            }),
         }
     }
 
     /// Forgets every history (a run starts with no tangential displacement).
     pub fn clear(&mut self) {
-        self.entry.fill(NO_ENTRY);
         for pool in &mut self.pools {
             *pool = Pool::default();
         }
@@ -293,11 +338,11 @@ impl TangentialHistories {
         self.pools
             .iter()
             .flat_map(Pool::springs)
-            .map(|t| t.spring_energy)
+            .map(|held| held.spring.spring_energy)
             .sum()
     }
 
-    /// Number of entries in use (pairs with a spring).
+    /// Number of pairs with a spring.
     #[must_use]
     pub fn entries(&self) -> usize {
         self.pools.iter().map(|pool| pool.held).sum()
@@ -311,7 +356,6 @@ impl TangentialHistories {
             pool.start_pass();
         }
         HistoryTargets {
-            entry: Scatter::new(&mut self.entry),
             pools: Scatter::new(&mut self.pools),
         }
     }
@@ -327,7 +371,6 @@ impl TangentialHistories {
 /// The histories as the pair pass reaches them, within each visit's window.
 #[derive(Debug)]
 pub struct HistoryTargets<'a> {
-    entry: Scatter<'a, u32, PerSlot>,
     pools: Scatter<'a, Pool, PerSlab>,
 }
 
@@ -337,57 +380,70 @@ impl HistoryTargets<'_> {
     #[must_use]
     pub fn open<'s, 'v>(&'s self, visit: &SlabVisit<'v>) -> OpenHistories<'s, 'v> {
         OpenHistories {
-            entry: self.entry.open(visit),
             pool: self.pools.open(visit),
         }
     }
 }
 
-/// The histories as one slab visit reaches them: its slots' entries and its slab's pool.
+/// The histories as one slab visit reaches them: its slab's pool.
+///
+/// The visit meets its touching pairs in slot order ([`Self::read`]), as the last pass met the
+/// springs it left, so it finds each contact's spring at the front of the unread ones. A spring
+/// it passes over, or does not reach by the end of the visit ([`Self::release_unmet`]), belongs
+/// to a pair that came apart: it is handed back as released, in slot order, without a test of
+/// every candidate slot for a spring.
 #[derive(Debug)]
 pub struct OpenHistories<'s, 'v> {
-    entry: Opened<'s, 'v, u32, PerSlot>,
     pool: Opened<'s, 'v, Pool, PerSlab>,
 }
 
 impl<'v> OpenHistories<'_, 'v> {
-    /// Slot `p`'s spring as the last pass left it (zero without an entry).
+    /// Slot `p`'s spring as the last pass left it (zero if it holds none), for a touching pair
+    /// met after every earlier slot of the visit: first, each spring of an earlier slot that the
+    /// visit passed over (its pair came apart) goes to `released(slot, spring)`, in slot order.
     #[inline(always)]
-    #[must_use]
-    pub fn read(&self, slab: OwnSlab<'v>, p: Slot<'v>) -> TangentialSpring {
-        match self.entry.read(p) {
-            NO_ENTRY => TangentialSpring::default(),
-            e => self.pool.update_own(slab, Pool::read, e as usize),
+    pub fn read(
+        &self,
+        slab: OwnSlab<'v>,
+        p: Slot<'v>,
+        mut released: impl FnMut(u32, TangentialSpring),
+    ) -> TangentialSpring {
+        let slot = u32::try_from(p.index()).expect("slots fit in u32");
+        loop {
+            match self.pool.update_own(slab, Pool::meet, slot) {
+                Met::Spring(spring) => return spring,
+                Met::Nothing => return TangentialSpring::default(),
+                Met::PassedOver(held) => released(held.slot, held.spring),
+            }
         }
     }
 
-    /// Stores slot `p`'s spring for the next pass (a zero spring takes no entry).
+    /// Stores slot `p`'s spring for the next pass (a zero spring takes no place); the slots
+    /// written must ascend.
     #[inline(always)]
     pub fn write(&self, slab: OwnSlab<'v>, p: Slot<'v>, value: TangentialSpring) {
-        let e = if value == TangentialSpring::default() {
-            NO_ENTRY
-        } else {
-            self.pool.update_own(slab, Pool::append, value)
-        };
-        self.entry.write(p, e);
+        if value != TangentialSpring::default() {
+            let slot = u32::try_from(p.index()).expect("slots fit in u32");
+            self.pool.update_own(
+                slab,
+                Pool::append,
+                HeldSpring {
+                    spring: value,
+                    slot,
+                },
+            );
+        }
     }
 
-    /// Whether slot `p` holds a spring (from the last pass).
-    #[inline]
-    #[must_use]
-    pub fn holds(&self, p: Slot<'v>) -> bool {
-        self.entry.read(p) != NO_ENTRY
-    }
-
-    /// The contact of slot `p` ended: returns what its spring held, and the slot keeps none.
-    #[inline(always)]
-    pub fn release(&self, slab: OwnSlab<'v>, p: Slot<'v>) -> TangentialSpring {
-        match self.entry.read(p) {
-            NO_ENTRY => TangentialSpring::default(),
-            e => {
-                self.entry.write(p, NO_ENTRY);
-                self.pool.update_own(slab, Pool::read, e as usize)
-            }
+    /// At the end of the visit: each spring the visit did not meet (its pair came apart) goes to
+    /// `released(slot, spring)`, in slot order.
+    pub fn release_unmet(
+        &self,
+        slab: OwnSlab<'v>,
+        mut released: impl FnMut(u32, TangentialSpring),
+    ) {
+        while let Some(held) = self.pool.update_own(slab, Pool::take_unmet, ()) {
+            released(held.slot, held.spring);
         }
     }
 }
@@ -460,46 +516,73 @@ mod tests {
         }
     }
 
-    /// One pass over a slab of `slots.len()` slots, as the pair pass makes it: each slot in order
-    /// reads its spring if it holds one, then keeps it (one more), releases it, or, holding
-    /// none, may start one. `model` holds what every slot should hold.
-    fn ring_pass(
-        pool: &mut Pool,
-        slots: &mut [u32],
-        model: &mut [Option<f64>],
-        mut choose: impl FnMut(usize) -> u32,
-    ) {
-        pool.start_pass();
-        for (slot, entry) in slots.iter_mut().enumerate() {
-            let roll = choose(slot);
-            match (*entry, model[slot]) {
-                (NO_ENTRY, None) => {
-                    if roll < 30 {
-                        *entry = pool.append(spring(slot as f64));
-                        model[slot] = Some(slot as f64);
-                    }
-                }
-                (e, Some(expected)) => {
-                    let before = pool.read(e as usize);
-                    assert_eq!(before, spring(expected), "slot {slot}");
-                    if roll < 10 {
-                        *entry = NO_ENTRY;
-                        model[slot] = None;
-                    } else {
-                        *entry = pool.append(spring(expected + 1.0));
-                        model[slot] = Some(expected + 1.0);
-                    }
-                }
-                (e, None) => panic!("slot {slot} has entry {e} but no spring"),
+    /// The spring the pool holds for `slot` from the last pass, as its `history.x`.
+    fn stored(pool: &Pool, slot: usize) -> Option<f64> {
+        let e = pool.find(u32::try_from(slot).unwrap()).ok()?;
+        Some(pool.ring[pool.position(e)].spring.history.x)
+    }
+
+    /// Meets `slot` as the pair pass does for a touching pair, collecting the springs passed
+    /// over on the way.
+    fn meet(pool: &mut Pool, slot: usize, passed_over: &mut Vec<(u32, f64)>) -> Option<f64> {
+        loop {
+            match pool.meet(u32::try_from(slot).unwrap()) {
+                Met::Spring(spring) => return Some(spring.history.x),
+                Met::Nothing => return None,
+                Met::PassedOver(held) => passed_over.push((held.slot, held.spring.history.x)),
             }
         }
+    }
+
+    /// One pass over a slab of `model.len()` slots, as the pair pass makes it: it meets the
+    /// slots of the touching pairs in order, reads the spring a slot holds, and writes one more;
+    /// a pair that comes apart is not met, and its spring must come back as released, in slot
+    /// order, from the meetings after it or at the end of the pass. `model` holds what every
+    /// slot should hold.
+    fn ring_pass(pool: &mut Pool, model: &mut [Option<f64>], mut choose: impl FnMut() -> u32) {
+        pool.start_pass();
+        let mut passed_over = Vec::new();
+        let mut came_apart = Vec::new();
+        for (slot, modelled) in model.iter_mut().enumerate() {
+            let roll = choose();
+            let next = match *modelled {
+                // A new contact (or none).
+                None => (roll < 30).then(|| {
+                    assert_eq!(meet(pool, slot, &mut passed_over), None, "slot {slot}");
+                    slot as f64
+                }),
+                // The pair came apart: the pass does not meet it.
+                Some(expected) if roll < 10 => {
+                    came_apart.push((u32::try_from(slot).unwrap(), expected));
+                    None
+                }
+                Some(expected) => {
+                    let before = meet(pool, slot, &mut passed_over);
+                    assert_eq!(before, Some(expected), "slot {slot}");
+                    Some(expected + 1.0)
+                }
+            };
+            if let Some(x) = next {
+                pool.append(HeldSpring {
+                    spring: spring(x),
+                    slot: u32::try_from(slot).unwrap(),
+                });
+            }
+            *modelled = next;
+        }
+        while let Some(held) = pool.take_unmet(()) {
+            passed_over.push((held.slot, held.spring.history.x));
+        }
+        assert_eq!(
+            passed_over, came_apart,
+            "the released springs, in slot order"
+        );
         pool.finish_pass();
     }
 
     #[test]
     fn a_ring_pool_keeps_every_unread_spring_through_births_deaths_and_growth() {
         let mut pool = Pool::default();
-        let mut slots = vec![NO_ENTRY; 500];
         let mut model = vec![None; 500];
         // A fixed pseudo-random sequence (a 64-bit LCG), so the test is the same at every run.
         let mut state = 0x2545_f491_4f6c_dd1d_u64;
@@ -515,11 +598,10 @@ mod tests {
             // grow in the middle of a pass, with unread springs behind the write position).
             let bias = if pass % 8 == 3 { 60 } else { 0 };
             let held = pool.held;
-            ring_pass(&mut pool, &mut slots, &mut model, |_| roll(bias));
+            ring_pass(&mut pool, &mut model, || roll(bias));
             largest_pass = largest_pass.max(held + pool.held);
-            for (slot, &entry) in slots.iter().enumerate() {
-                let stored = (entry != NO_ENTRY).then(|| pool.get(entry as usize).history.x);
-                assert_eq!(stored, model[slot], "pass {pass}, slot {slot}");
+            for (slot, &expected) in model.iter().enumerate() {
+                assert_eq!(stored(&pool, slot), expected, "pass {pass}, slot {slot}");
             }
             assert_eq!(pool.held, model.iter().flatten().count());
             // The growth rule: every spring of one pass's reads and writes, and an eighth more.
@@ -529,7 +611,7 @@ mod tests {
         // spring into the place of one it has read. (Two buffers would need twice the springs.)
         let capacity = pool.ring.len();
         for pass in 0..20 {
-            ring_pass(&mut pool, &mut slots, &mut model, |_| 50);
+            ring_pass(&mut pool, &mut model, || 50);
             assert_eq!(pool.ring.len(), capacity, "steady pass {pass}");
         }
         assert!(
@@ -546,54 +628,85 @@ mod tests {
     }
 
     #[test]
-    #[should_panic(expected = "read out of order")]
-    fn a_ring_pool_refuses_a_read_out_of_order() {
+    #[should_panic(expected = "added after one of a later slot")]
+    fn a_ring_pool_refuses_a_spring_out_of_slot_order() {
         let mut pool = Pool::with_room(4);
-        for x in 1..=3 {
-            pool.push(spring(f64::from(x)));
+        for slot in [1, 5, 3] {
+            pool.push(HeldSpring {
+                spring: spring(f64::from(slot)),
+                slot,
+            });
         }
-        pool.start_pass();
-        let _ = pool.read(1);
-        let _ = pool.read(0);
     }
 
     #[test]
-    fn a_pass_reads_the_last_pass_springs_and_drops_released_ones() {
+    fn a_pass_reads_the_last_pass_springs_and_releases_those_it_does_not_meet() {
         // A row of five spheres: four touching pairs, over at least two slabs.
         let positions: Vec<DVec3> = (0..5).map(|i| DVec3::X * (1.9 * f64::from(i))).collect();
         let mut list = NeighborList::new(0.5, None);
         list.build(&positions, &[1.0; 5]);
         let mut histories = TangentialHistories::new(&list);
-        // Each pass adds 1 to every spring, except that the pair of slot 0 ends at pass 3.
+        // Each pass adds 1 to every spring, except that the pair of slot 0 ends at pass 3 (the
+        // pass no longer meets it) and that of the last slot at pass 4.
+        let last = list.pair_count() - 1;
         for pass in 1..=4 {
+            let released = std::sync::Mutex::new(Vec::new());
             let targets = histories.start_pass();
             list.for_each_slab(
                 false,
                 (),
                 |(), visit| {
                     let targets = targets.open(visit);
+                    let mut note = |slot: u32, spring: TangentialSpring| {
+                        let (owner, partner) = visit.pair_of_slot(slot);
+                        released.lock().unwrap().push((
+                            slot,
+                            owner.index(),
+                            partner.index(),
+                            spring,
+                        ));
+                    };
                     for window in visit.windows() {
                         for (p, _) in window.pairs() {
-                            if p.index() == 0 && pass >= 3 {
-                                let released = targets.release(window.own_slab(), p);
-                                assert_eq!(released, spring(if pass == 3 { 2.0 } else { 0.0 }));
-                            } else {
-                                let before = targets.read(window.own_slab(), p);
+                            let apart =
+                                (p.index() == 0 && pass >= 3) || (p.index() == last && pass >= 4);
+                            if !apart {
+                                let before = targets.read(visit.own_slab(), p, &mut note);
                                 let after = spring(before.history.x + 1.0);
-                                targets.write(window.own_slab(), p, after);
+                                targets.write(visit.own_slab(), p, after);
                             }
                         }
                     }
+                    targets.release_unmet(visit.own_slab(), &mut note);
                 },
                 |(), ()| (),
             );
             histories.finish_pass();
+            let released = released.into_inner().unwrap();
+            let pair = |slot: usize| list.pairs().find(|&(p, ..)| p == slot).unwrap();
+            let expected: Vec<_> = match pass {
+                // Slot 0 is passed over when the pass meets slot 1.
+                3 => vec![(0, pair(0).1, pair(0).2, spring(2.0))],
+                // The last slot is not met at all: released at the end of its slab's visit.
+                4 => vec![(
+                    u32::try_from(last).unwrap(),
+                    pair(last).1,
+                    pair(last).2,
+                    spring(3.0),
+                )],
+                _ => vec![],
+            };
+            assert_eq!(released, expected, "pass {pass}");
         }
-        assert_eq!(histories.entries(), 3);
+        assert_eq!(histories.entries(), 2);
         for (p, owner, _) in list.pairs() {
-            let expected = if p == 0 { 0.0 } else { 4.0 };
+            let expected = match p {
+                0 => 0.0,
+                p if p == last => 0.0,
+                _ => 4.0,
+            };
             assert_eq!(histories.get(&list, p, owner), spring(expected), "slot {p}");
         }
-        assert_eq!(histories.spring_energy(), 12.0);
+        assert_eq!(histories.spring_energy(), 8.0);
     }
 }

@@ -275,6 +275,30 @@ impl<'a> SlabVisit<'a> {
         }
     }
 
+    /// The owner and partner of `slot`, a slot of one of the visit's owners.
+    ///
+    /// # Panics
+    /// If `slot` belongs to no owner of the visit.
+    #[must_use]
+    pub fn pair_of_slot(&self, slot: u32) -> (Member<'a>, Member<'a>) {
+        let slot_index = slot as usize;
+        // Members ascend, and so do their first slots.
+        let place = self
+            .members
+            .partition_point(|&k| self.offsets[k as usize] as usize <= slot_index);
+        let owner = place
+            .checked_sub(1)
+            .map(|place| self.members[place])
+            .filter(|&k| slot_index < self.offsets[k as usize + 1] as usize)
+            .unwrap_or_else(|| panic!("slot {slot} belongs to no owner of slab {}", self.slab));
+        let member = |index: u32| Member {
+            index,
+            window: PhantomData,
+            thread: PhantomData,
+        };
+        (member(owner), member(self.partners[slot_index]))
+    }
+
     /// Whether this visit records its slab's near list anew ([`SlabVisit::record_near`]).
     #[must_use]
     #[inline]

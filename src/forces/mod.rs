@@ -534,6 +534,79 @@ material = "m"
         }
     }
 
+    /// Pairs that came apart while holding tangential springs: the pair pass does not meet
+    /// them, finds their springs passed over (before a later contact of the slab) or unmet (at
+    /// the end of the slab), and books each spring's energy as lost, half to each particle;
+    /// no spring is left. Four spheres in a row, 1 µm apart, then touching, then 1 µm apart;
+    /// at rest, so the one contact loses nothing.
+    #[test]
+    fn springs_of_pairs_that_came_apart_are_lost_half_to_each_particle() {
+        let text = plate_scene("skin_m = 1e-5")
+            + r#"
+[[particles]]
+position_m = [0.0, 0.0, 1e-4]
+radius_m = 2e-5
+material = "m"
+[[particles]]
+position_m = [4.1e-5, 0.0, 1e-4]
+radius_m = 2e-5
+material = "m"
+[[particles]]
+position_m = [8e-5, 0.0, 1e-4]
+radius_m = 2e-5
+material = "m"
+[[particles]]
+position_m = [12.1e-5, 0.0, 1e-4]
+radius_m = 2e-5
+material = "m"
+"#;
+        let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
+        let (model, mut particles) = Model::build(&scene);
+        let mut list = NeighborList::new(model.skin, None);
+        list.build(&particles.position, &particles.radius);
+        let pairs: Vec<_> = list.pairs().collect();
+        let slot_of = |a: usize, b: usize| {
+            pairs
+                .iter()
+                .find(|&&(_, o, q)| (o, q) == (a, b) || (o, q) == (b, a))
+                .map(|&(p, o, _)| (p, o))
+                .expect("the pair is in the list")
+        };
+        // Both apart pairs hold a spring; the touching pair in between holds none.
+        let energies = [3e-15, 5e-15];
+        let mut histories = TangentialHistories::new(&list);
+        for ((a, b), energy) in [(0, 1), (2, 3)].into_iter().zip(energies) {
+            let (p, owner) = slot_of(a, b);
+            let spring = TangentialSpring {
+                history: DVec3::new(0.0, 1e-9, 0.0),
+                spring_energy: energy,
+            };
+            histories.set(&list, p, owner, spring);
+        }
+        assert_eq!(histories.entries(), 2);
+        let mut rotation = Rotation::new(particles.len(), model.walls.len());
+        let mut near = NearPairs::default();
+        let mut walls = WallCandidates::default();
+        let rotation_pass = PassRotation {
+            rotation: &mut rotation,
+            histories: &mut histories,
+        };
+        let _ = compute(
+            &model,
+            &mut particles,
+            &list,
+            (&mut near, true),
+            &mut walls,
+            None,
+            Some(rotation_pass),
+            None,
+            false,
+        );
+        let half = energies.map(|e| 0.5 * e);
+        assert_eq!(particles.dissipated, [half[0], half[0], half[1], half[1]]);
+        assert_eq!(histories.entries(), 0);
+    }
+
     /// The wall candidates are the particles within the skin of a wall at the list's reference
     /// positions (here the skin is 10 µm and the radius 20 µm), taken anew for a new build
     /// only; and the particle pass over them gives bitwise what it gives over every particle.

@@ -146,6 +146,12 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             handle_kept::<BONDS, FRICTION, HEAT>(
                 model, particles, omega, targets, &mut batch, set, summary,
             );
+            // The springs the visit did not meet belong to pairs that came apart.
+            if let Some(histories) = targets.tangential.as_ref().filter(|_| FRICTION) {
+                histories.release_unmet(slab.own_slab(), |slot, spring| {
+                    batch.release(slot, spring);
+                });
+            }
             batch.flush::<BONDS, FRICTION, HEAT>(model, particles, targets, set, summary);
             batch.finish_owner(targets);
             batch.release_buffers();
@@ -219,7 +225,6 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
 ) {
     // Known at compile time to be `None` where the instantiation leaves the physics out.
     let states = targets.states.as_ref().filter(|_| BONDS);
-    let histories = targets.tangential.as_ref().filter(|_| FRICTION);
     let mut count = batch.kept_count;
     let room = count + entries.len();
     if batch.kept.len() < room {
@@ -244,14 +249,7 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
             slot,
             separation,
         };
-        count = keep(
-            &mut batch.kept,
-            count,
-            kept_slot,
-            touching,
-            states,
-            histories,
-        );
+        count = keep(&mut batch.kept, count, kept_slot, touching, states);
     }
     batch.kept_count = count;
 }
@@ -453,6 +451,21 @@ impl<'r, 's> Batch<'r, 's> {
         self.filled = 0;
     }
 
+    /// The spring of `slot`, whose pair came apart: it vanishes with the contact (k_t → 0 as
+    /// δ → 0), and what it held is lost, half to each particle, booked in slot order with the
+    /// contacts.
+    #[inline]
+    fn release(&mut self, slot: u32, spring: TangentialSpring) {
+        if spring.spring_energy != 0.0 {
+            let (owner, partner) = self.slab.pair_of_slot(slot);
+            self.events.push(Event::Released {
+                owner,
+                partner,
+                energy: spring.spring_energy,
+            });
+        }
+    }
+
     /// The sums of `owner`, begun if it is not the owner being written back (whose sums are
     /// then written first).
     #[inline]
@@ -512,7 +525,6 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
 ) {
     // Known at compile time to be `None` where the instantiation leaves the physics out.
     let states = targets.states.as_ref().filter(|_| BONDS);
-    let histories = targets.tangential.as_ref().filter(|_| FRICTION);
     let owner = window.owner();
     let a = owner.index();
     let minimum_image = window.needs_minimum_image();
@@ -527,7 +539,6 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
         window,
         slab: batch.slab,
         states,
-        histories,
         x_a,
         r_a,
         near_skin,
@@ -545,7 +556,6 @@ struct SiftedWindow<'w, 's, 't> {
     window: &'w Window<'s>,
     slab: &'w SlabVisit<'s>,
     states: Option<&'t Opened<'t, 's, BondState, PerSlot>>,
-    histories: Option<&'t OpenHistories<'t, 's>>,
     x_a: DVec3,
     r_a: f64,
     near_skin: f64,
@@ -576,14 +586,7 @@ impl<'s> SiftedWindow<'_, 's, '_> {
                 slot,
                 separation,
             };
-            count = keep(
-                kept,
-                count,
-                kept_slot,
-                touching,
-                self.states,
-                self.histories,
-            );
+            count = keep(kept, count, kept_slot, touching, self.states);
             let near_reach = reach + self.near_skin;
             if distance_squared < near_reach * near_reach {
                 self.slab.record_near(self.window, slot);
@@ -595,8 +598,9 @@ impl<'s> SiftedWindow<'_, 's, '_> {
 
 /// The rule of both sifts ([`sift`], [`sift_near`]): writes `slot` to `kept[count]` and returns
 /// the end of the kept slots, advanced past it if the pair touches or its slot holds a bond state
-/// or a spring (which must be cleared when it comes apart). Without a branch: whether a candidate
-/// touches is a coin toss for the branch predictor.
+/// (which must be cleared when it comes apart). Without a branch: whether a candidate touches is
+/// a coin toss for the branch predictor. (A spring needs no test here: the springs of pairs that
+/// came apart are the ones the pass does not meet, [`OpenHistories`].)
 #[inline(always)]
 fn keep<'s>(
     kept: &mut [Option<KeptSlot<'s>>],
@@ -604,12 +608,10 @@ fn keep<'s>(
     slot: KeptSlot<'s>,
     touching: bool,
     states: Option<&Opened<'_, 's, BondState, PerSlot>>,
-    histories: Option<&OpenHistories<'_, 's>>,
 ) -> usize {
     let bonded = states.is_some_and(|states| states.read(slot.slot) != BondState::Unbonded);
-    let sprung = histories.is_some_and(|histories| histories.holds(slot.slot));
     kept[count] = Some(slot);
-    count + usize::from(touching | bonded | sprung)
+    count + usize::from(touching | bonded)
 }
 
 /// The kept slots of the batch, in order: the pairs apart have their slot state cleared at once;
@@ -653,18 +655,6 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                     states.write(p, BondState::Unbonded);
                 }
             }
-            if let Some(histories) = histories {
-                // The spring vanishes with the contact (k_t → 0 as δ → 0): what it held is
-                // lost, half to each particle.
-                let held = histories.release(own_slab, p);
-                if held.spring_energy != 0.0 {
-                    batch.events.push(Event::Released {
-                        owner,
-                        partner,
-                        energy: held.spring_energy,
-                    });
-                }
-            }
             continue;
         }
         debug_assert!(
@@ -678,7 +668,12 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             .unwrap_or_else(|| PairMaterial::of(model, reads.material[a], reads.material[b]));
         let melted = melted.map_or((false, false), |melted| (melted[a], melted[b]));
         let (angular_velocity, held) = match (histories, omega) {
-            (Some(histories), Some(omega)) => ([omega[a], omega[b]], histories.read(own_slab, p)),
+            (Some(histories), Some(omega)) => {
+                let held = histories.read(own_slab, p, |slot, spring| {
+                    batch.release(slot, spring);
+                });
+                ([omega[a], omega[b]], held)
+            }
             _ => ([DVec3::ZERO; 2], TangentialSpring::default()),
         };
         let input = ContactInput {
