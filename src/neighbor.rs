@@ -487,6 +487,12 @@ impl NeighborList {
             .collect();
         // Exact sizes: a growing `Vec` would keep up to twice the slots for the list's lifetime.
         let total: usize = chunks.iter().map(|(_, _, found)| found.len()).sum();
+        // A near-list entry holds a slot's number in 31 bits (`scatter::NearPair`): far beyond
+        // any bed this machine holds (about 440 million spheres on a packed bed).
+        assert!(
+            total < 1 << 31,
+            "{total} pair slots: the neighbour list holds fewer than 2^31"
+        );
         self.offsets = Vec::with_capacity(n + 1);
         self.offsets.push(0);
         self.partners = Vec::with_capacity(total);
@@ -693,9 +699,7 @@ impl NeighborList {
             let mut partial = identity.clone();
             let mut held =
                 near.map(|(pairs, _)| pairs.slabs[slab].lock().expect("no visit panicked"));
-            // A slab whose list could not hold every near slot records it at every pass.
-            let record = near.is_some_and(|(_, record)| record)
-                || held.as_ref().is_some_and(|list| !list.complete);
+            let record = near.is_some_and(|(_, record)| record);
             // A list is recorded into this thread's scratch and then copied into the slab's
             // allocation, which is replaced only when too small (at the size needed and a
             // sixteenth more): grown by pushes, each slab's list would keep up to half its
@@ -704,10 +708,7 @@ impl NeighborList {
             let scratch = RECORDING.with(|scratch| {
                 let mut pairs = scratch.take();
                 pairs.clear();
-                std::cell::RefCell::new(NearList {
-                    pairs,
-                    complete: true,
-                })
+                std::cell::RefCell::new(NearList { pairs })
             });
             let near_visit = match held.as_ref() {
                 None => NearVisit::Off,
@@ -740,7 +741,6 @@ impl NeighborList {
                 }
                 list.pairs.clear();
                 list.pairs.extend_from_slice(&recorded.pairs);
-                list.complete = recorded.complete;
             }
             RECORDING.with(|kept| kept.replace(recorded.pairs));
             partial
