@@ -541,25 +541,12 @@ material = "m"
     /// at rest, so the one contact loses nothing.
     #[test]
     fn springs_of_pairs_that_came_apart_are_lost_half_to_each_particle() {
-        let text = plate_scene("skin_m = 1e-5")
-            + r#"
-[[particles]]
-position_m = [0.0, 0.0, 1e-4]
-radius_m = 2e-5
-material = "m"
-[[particles]]
-position_m = [4.1e-5, 0.0, 1e-4]
-radius_m = 2e-5
-material = "m"
-[[particles]]
-position_m = [8e-5, 0.0, 1e-4]
-radius_m = 2e-5
-material = "m"
-[[particles]]
-position_m = [12.1e-5, 0.0, 1e-4]
-radius_m = 2e-5
-material = "m"
-"#;
+        let mut text = plate_scene("skin_m = 1e-5");
+        for x in [0.0, 4.1e-5, 8e-5, 12.1e-5] {
+            text += &format!(
+                "[[particles]]\nposition_m = [{x:e}, 0.0, 1e-4]\nradius_m = 2e-5\nmaterial = \"m\"\n"
+            );
+        }
         let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
         let (model, mut particles) = Model::build(&scene);
         let mut list = NeighborList::new(model.skin, None);
