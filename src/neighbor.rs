@@ -53,7 +53,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::periodic::Periodic;
-use crate::scatter::{NearList, NearPair, NearVisit, SlabVisit, Window};
+use crate::scatter::{NearPair, NearVisit, SlabVisit, Window};
 
 /// The near skin as a fraction of the skin: small enough that the near lists hold few pairs
 /// beyond the touching ones (about 2.3 slots per particle on the LIGGGHTS bed, against 4.8
@@ -109,7 +109,7 @@ pub struct NearPairs {
     generation: u64,
     /// Each slab's entries, behind a lock only so that the concurrent visits of a colour phase
     /// can each take their own (never contended).
-    slabs: Vec<Mutex<NearList>>,
+    slabs: Vec<Mutex<Vec<NearPair>>>,
 }
 
 impl Clone for NearPairs {
@@ -132,7 +132,7 @@ impl NearPairs {
     pub fn len(&self) -> usize {
         self.slabs
             .iter()
-            .map(|slab| slab.lock().expect("no visit panicked").pairs.len())
+            .map(|slab| slab.lock().expect("no visit panicked").len())
             .sum()
     }
 
@@ -708,12 +708,12 @@ impl NeighborList {
             let scratch = RECORDING.with(|scratch| {
                 let mut pairs = scratch.take();
                 pairs.clear();
-                std::cell::RefCell::new(NearList { pairs })
+                std::cell::RefCell::new(pairs)
             });
             let near_visit = match held.as_ref() {
                 None => NearVisit::Off,
                 Some(_) if record => NearVisit::Record(&scratch),
-                Some(list) => NearVisit::Read(list.pairs.as_slice()),
+                Some(list) => NearVisit::Read(list.as_slice()),
             };
             // SAFETY: every partner lies in its owner's slab or the successor (checked at the
             // end of `build`); the slabs running concurrently are those of one colour phase,
@@ -735,14 +735,14 @@ impl NeighborList {
             visit(&mut partial, &visit_of_slab);
             let recorded = scratch.into_inner();
             if let Some(list) = held.as_mut().filter(|_| record) {
-                if list.pairs.capacity() < recorded.pairs.len() {
-                    let size = recorded.pairs.len();
-                    list.pairs = Vec::with_capacity(size + size / 16);
+                if list.capacity() < recorded.len() {
+                    let size = recorded.len();
+                    **list = Vec::with_capacity(size + size / 16);
                 }
-                list.pairs.clear();
-                list.pairs.extend_from_slice(&recorded.pairs);
+                list.clear();
+                list.extend_from_slice(&recorded);
             }
-            RECORDING.with(|kept| kept.replace(recorded.pairs));
+            RECORDING.with(|kept| kept.replace(recorded));
             partial
         };
         let mut total = identity.clone();

@@ -148,15 +148,6 @@ pub struct NearPair {
     partner: u32,
 }
 
-/// A slab's near list as recorded. Every near slot has its entry: a list holds fewer than 2^31
-/// slots (`NeighborList::build`), so a slot's number and its owner's image flag fit the entry's
-/// 32 bits.
-#[derive(Debug, Default)]
-pub struct NearList {
-    /// The entries, owner by owner and slot by slot.
-    pub(crate) pairs: Vec<NearPair>,
-}
-
 /// What a slab visit does with its slab's near list.
 #[derive(Debug)]
 pub enum NearVisit<'a> {
@@ -164,8 +155,10 @@ pub enum NearVisit<'a> {
     Off,
     /// The list recorded at the last refresh, to read.
     Read(&'a [NearPair]),
-    /// The list to record anew (empty when the visit begins).
-    Record(&'a RefCell<NearList>),
+    /// The list to record anew, owner by owner and slot by slot (empty when the visit begins).
+    /// Every near slot gets its entry: a list holds fewer than 2^31 slots
+    /// (`NeighborList::build`), so a slot's number and its owner's image flag fit 32 bits.
+    Record(&'a RefCell<Vec<NearPair>>),
 }
 
 /// The tokens of one near-list entry: the owner, the slot, its partner, and whether the owner's
@@ -313,7 +306,7 @@ impl<'a> SlabVisit<'a> {
         );
         if let NearVisit::Record(list) = &self.near {
             debug_assert!(slot.index < 1 << 31, "the list holds fewer than 2^31 slots");
-            list.borrow_mut().pairs.push(NearPair {
+            list.borrow_mut().push(NearPair {
                 owner: window.owner().index,
                 slot: slot.index | u32::from(window.crossing) << 31,
                 partner: window.partners[slot.index() - window.slots.start],
@@ -981,7 +974,7 @@ mod tests {
         partners[0] = 3;
         let slab_of = [0, 1, 0, 1];
         let crossing = [false, false, true, false];
-        let recording = RefCell::new(NearList { pairs: Vec::new() });
+        let recording = RefCell::new(Vec::new());
         let visit = |near| {
             // SAFETY: single-threaded test; the partners (1 and 3) lie in slab 1, the successor.
             unsafe {
@@ -1000,8 +993,8 @@ mod tests {
             }
         }
         let recorded = recording.take();
-        assert_eq!(recorded.pairs.len(), 8);
-        let reader = visit(NearVisit::Read(&recorded.pairs));
+        assert_eq!(recorded.len(), 8);
+        let reader = visit(NearVisit::Read(&recorded));
         assert!(!reader.records_near());
         let read: Vec<_> = reader
             .near_pairs(0..reader.near_count())
