@@ -129,9 +129,22 @@ impl Pool {
         })
     }
 
-    /// Appends `value` for the next pass.
+    /// Appends `value` for the next pass. The pass must append in ascending slot order: the
+    /// next pass meets the springs in that order (checked in debug builds, which the test suite
+    /// runs; the old per-slot entry numbers had made any order work).
     #[inline(always)]
     fn append(&mut self, value: HeldSpring) {
+        debug_assert!(
+            self.written == 0 || {
+                let last = self
+                    .write_position
+                    .checked_sub(1)
+                    .unwrap_or(self.ring.len() - 1);
+                self.ring[last].slot < value.slot
+            },
+            "spring of slot {} appended after one of a later slot",
+            value.slot
+        );
         // Its place held the last pass's spring `held + written - capacity`, if that is ≥ 0:
         // free once read.
         if self.held + self.written >= self.read_mark + self.ring.len() {
@@ -625,6 +638,20 @@ mod tests {
             pool.ring.len(),
             pool.held
         );
+    }
+
+    #[test]
+    #[cfg(debug_assertions)]
+    #[should_panic(expected = "appended after one of a later slot")]
+    fn a_pass_refuses_a_spring_appended_out_of_slot_order() {
+        let mut pool = Pool::default();
+        pool.start_pass();
+        for slot in [2, 7, 4] {
+            pool.append(HeldSpring {
+                spring: spring(f64::from(slot)),
+                slot,
+            });
+        }
     }
 
     #[test]
