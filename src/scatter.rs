@@ -783,17 +783,11 @@ impl<'v, T> Opened<'_, 'v, T, PerSlab> {
 }
 
 /// Calls `visit(partial, state, window)` once for every particle `0..count` (or, with `listed`,
-/// for each particle it names), with a window allowing that particle alone. The particles go in
-/// chunks of `chunk_len` consecutive indices:
-/// a chunk's particles in ascending order with the chunk's own `states[c]` (so a visit may keep
-/// per-chunk data sorted by particle) and the chunk's own `partial` (from `identity`), which the
-/// visit updates in place, the chunks in parallel when `parallel`. The partials are reduced with
-/// `merge` (associative and commutative, for the result not to depend on the thread count), as
-/// in [`crate::neighbor::NeighborList::for_each_owner`].
+/// for each particle it names), with a window allowing that particle alone: [`for_each_chunk`]
+/// with each chunk's particles visited in ascending order.
 ///
 /// # Panics
-/// If `states` does not hold one state per chunk, with 2^32 particles or more, or if `listed`
-/// is not strictly ascending below `count`.
+/// As [`for_each_chunk`].
 #[allow(clippy::too_many_arguments)]
 pub fn for_each_particle<S, R, V, M>(
     count: usize,
@@ -809,6 +803,52 @@ where
     S: Send,
     R: Clone + Send + Sync,
     V: Fn(&mut R, &mut S, &Window<'_>) + Sync,
+    M: Fn(R, R) -> R + Sync + Send,
+{
+    for_each_chunk(
+        count,
+        chunk_len,
+        listed,
+        states,
+        parallel,
+        identity,
+        |partial, state, chunk| {
+            for window in chunk.windows() {
+                visit(partial, state, &window);
+            }
+        },
+        merge,
+    )
+}
+
+/// Calls `visit(partial, state, chunk)` once for every chunk of `chunk_len` consecutive
+/// particles of `0..count`, which hands out a window for each of its particles (with `listed`:
+/// each it names) in ascending order, with the chunk's own `states[c]` (so a visit may keep
+/// per-chunk data sorted by particle) and the chunk's own `partial` (from `identity`), which the
+/// visit updates in place, the chunks in parallel when `parallel`. The partials are reduced with
+/// `merge` (associative and commutative, for the result not to depend on the thread count), as
+/// in [`crate::neighbor::NeighborList::for_each_owner`]. The windows of a chunk share its
+/// lifetime, so a visit may hold the tokens of several of them at once (a batch of contacts
+/// gathered over particles).
+///
+/// # Panics
+/// If `states` does not hold one state per chunk, with 2^32 particles or more, or if `listed`
+/// is not strictly ascending below `count`.
+#[allow(clippy::too_many_arguments)]
+pub fn for_each_chunk<S, R, V, M>(
+    count: usize,
+    chunk_len: usize,
+    listed: Option<&[u32]>,
+    states: &mut [S],
+    parallel: bool,
+    identity: R,
+    visit: V,
+    merge: M,
+) -> R
+where
+    S: Send,
+    R: Clone + Send + Sync,
+    V: Fn(&mut R, &mut S, &ParticleChunk<'_>) + Sync,
     M: Fn(R, R) -> R + Sync + Send,
 {
     assert_eq!(
@@ -829,22 +869,20 @@ where
     // A chunk's particles add into the partial they are given.
     let chunk = |mut partial: R, c: usize, state: &mut S| {
         let range = c * chunk_len..((c + 1) * chunk_len).min(count);
-        let mut visit_one = |k: usize| {
-            // SAFETY: every particle is visited at most once: each chunk visits its own range,
-            // and a list names each particle once.
-            let window = unsafe { Window::particle(k) };
-            visit(&mut partial, state, &window);
-        };
-        match listed {
-            None => range.for_each(&mut visit_one),
+        let particles = match listed {
+            None => ChunkParticles::Range(range),
             Some(listed) => {
                 let first = listed.partition_point(|&k| (k as usize) < range.start);
                 let end = listed.partition_point(|&k| (k as usize) < range.end);
-                listed[first..end]
-                    .iter()
-                    .for_each(|&k| visit_one(k as usize));
+                ChunkParticles::Listed(&listed[first..end])
             }
-        }
+        };
+        let chunk = ParticleChunk {
+            particles,
+            brand: PhantomData,
+            thread: PhantomData,
+        };
+        visit(&mut partial, state, &chunk);
         partial
     };
     // The members of the thread team take the same share of the chunks at every pass.
@@ -855,6 +893,42 @@ where
         chunk,
         &merge,
     )
+}
+
+/// One chunk of a pass over particles ([`for_each_chunk`]): its particles, each handed out once
+/// as a window of its own.
+#[derive(Debug)]
+pub struct ParticleChunk<'a> {
+    particles: ChunkParticles<'a>,
+    brand: Brand<'a>,
+    thread: ThreadBound,
+}
+
+/// The particles of a [`ParticleChunk`], ascending.
+#[derive(Debug)]
+enum ChunkParticles<'a> {
+    Range(Range<usize>),
+    Listed(&'a [u32]),
+}
+
+impl<'a> ParticleChunk<'a> {
+    /// A window for each of the chunk's particles, in ascending order.
+    pub fn windows(&self) -> impl Iterator<Item = Window<'a>> + '_ {
+        let (range, listed) = match &self.particles {
+            ChunkParticles::Range(range) => (range.clone(), None),
+            ChunkParticles::Listed(listed) => (0..listed.len(), Some(*listed)),
+        };
+        range.map(move |i| {
+            let k = listed.map_or(i, |listed| listed[i] as usize);
+            // SAFETY: no other thread holds a window of particle k: each chunk hands out its
+            // own range or the part of a strictly ascending list within it (`for_each_chunk`),
+            // each chunk is visited by one thread, and neither the chunk nor its windows can
+            // leave that thread (`ThreadBound`). The brand `'a` is the chunk's, fresh for each
+            // visit (`for_each_chunk`'s `visit` is generic over it), so it is no slab visit's.
+            // And k < count < 2^32 (`for_each_chunk`).
+            unsafe { Window::particle(k) }
+        })
+    }
 }
 
 #[cfg(test)]
@@ -1031,5 +1105,55 @@ mod tests {
         // SAFETY: single-threaded test; nothing is written.
         let window = unsafe { Window::pair(0, 0..1, &partners, &slab_of, 0, 1, false) };
         assert!(std::panic::catch_unwind(|| window.pairs().count()).is_err());
+    }
+
+    /// A pass over chunks hands out each particle (or each listed one) once, in its own chunk,
+    /// ascending, and merges the chunks' partials; a pass over particles is that pass one window
+    /// at a time.
+    #[test]
+    fn a_pass_over_chunks_hands_out_each_particle_once_in_its_chunk() {
+        let count = 23;
+        let chunk_len = 5;
+        let listed: Vec<u32> = (0..23).filter(|k| k % 3 != 1).collect();
+        for (listed, parallel) in [(None, false), (Some(listed.as_slice()), true)] {
+            let expected: Vec<usize> = match listed {
+                None => (0..count).collect(),
+                Some(listed) => listed.iter().map(|&k| k as usize).collect(),
+            };
+            let mut chunks: Vec<usize> = (0..count.div_ceil(chunk_len)).collect();
+            let seen = for_each_chunk(
+                count,
+                chunk_len,
+                listed,
+                &mut chunks,
+                parallel,
+                Vec::new(),
+                |seen: &mut Vec<usize>, &mut c, chunk| {
+                    let particles: Vec<usize> =
+                        chunk.windows().map(|w| w.owner().index()).collect();
+                    assert!(particles.is_sorted(), "chunk {c}: {particles:?}");
+                    assert!(particles.iter().all(|k| k / chunk_len == c), "chunk {c}");
+                    seen.extend(particles);
+                },
+                |mut a, b| {
+                    a.extend(b);
+                    a
+                },
+            );
+            let mut seen = seen;
+            seen.sort_unstable();
+            assert_eq!(seen, expected);
+            let one_by_one = for_each_particle(
+                count,
+                chunk_len,
+                listed,
+                &mut chunks,
+                parallel,
+                0,
+                |sum: &mut usize, _, window| *sum += window.owner().index(),
+                |a, b| a + b,
+            );
+            assert_eq!(one_by_one, expected.iter().sum::<usize>());
+        }
     }
 }

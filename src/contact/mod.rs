@@ -30,7 +30,8 @@ pub struct NormalParams {
 
 /// Parameters of the tangential and rolling laws of one material pair (or material and wall),
 /// for scenes with `contact.friction_coefficient` or `contact.rolling_friction_coefficient`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The default is all zero: no tangential force, no rolling resistance.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FrictionParams {
     /// Effective shear modulus G* \[Pa\] (M.56).
     pub effective_shear_modulus: f64,

@@ -45,11 +45,11 @@ use super::{TangentialContact, tangential_step, unit_normal};
 pub(super) const LANES: usize = 16;
 
 /// One quantity of every lane.
-type Lane<T> = [T; LANES];
+pub(super) type Lane<T> = [T; LANES];
 
 /// A vector quantity of every lane, one array per component.
 #[derive(Debug, Clone, Copy, Default)]
-struct Lane3 {
+pub(super) struct Lane3 {
     x: Lane<f64>,
     y: Lane<f64>,
     z: Lane<f64>,
@@ -57,12 +57,12 @@ struct Lane3 {
 
 impl Lane3 {
     #[inline(always)]
-    fn get(&self, i: usize) -> DVec3 {
+    pub(super) fn get(&self, i: usize) -> DVec3 {
         DVec3::new(self.x[i], self.y[i], self.z[i])
     }
 
     #[inline(always)]
-    fn set(&mut self, i: usize, v: DVec3) {
+    pub(super) fn set(&mut self, i: usize, v: DVec3) {
         self.x[i] = v.x;
         self.y[i] = v.y;
         self.z[i] = v.z;
@@ -681,6 +681,45 @@ fn run_build<const BONDS: bool, const FRICTION: bool>(
     } else {
         kernel::<BONDS, FRICTION, false>(model, lanes);
     }
+}
+
+/// A loop over the lanes whose body [`dispatch`] compiles for each build: its `run` must be
+/// `#[inline(always)]`, so that it is compiled into the build's function, with its instructions.
+pub(super) trait LaneLoop {
+    /// The loop.
+    fn run(self);
+}
+
+/// Runs `lanes` compiled for `set`: the wall kernel's builds (`wall_lanes`). (The pair kernel
+/// keeps functions of its own, above, which profiles name.)
+#[inline]
+#[allow(unsafe_code)]
+pub(super) fn dispatch<L: LaneLoop>(set: InstructionSet, lanes: L) {
+    #[cfg(target_arch = "x86_64")]
+    match set.width {
+        // SAFETY: a width above the baseline is only made where the processor has its
+        // instructions (`InstructionSet::available`).
+        Width::Avx512 => unsafe { loop_avx512(lanes) },
+        // SAFETY: as above.
+        Width::Avx2 => unsafe { loop_avx2(lanes) },
+        Width::Baseline => lanes.run(),
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    lanes.run();
+}
+
+/// A [`LaneLoop`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn loop_avx2<L: LaneLoop>(lanes: L) {
+    lanes.run();
+}
+
+/// A [`LaneLoop`] compiled for AVX-512 (F, DQ, VL).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx512vl")]
+fn loop_avx512<L: LaneLoop>(lanes: L) {
+    lanes.run();
 }
 
 /// The step's contact kernel on a fixed set of contacts, for `benches/pair_kernel.rs`: the lanes

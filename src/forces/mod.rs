@@ -34,6 +34,7 @@ use crate::thermal::{self, HeatSums, ThermalModel};
 mod lanes;
 mod pair_pass;
 mod particle_pass;
+mod wall_lanes;
 
 use pair_pass::{HeatTargets, PairTargets};
 
@@ -532,6 +533,118 @@ material = "m"
             assert_eq!(particles.force[k], particles.mass[k] * model.gravity);
             assert_eq!(rotation.torque[k], DVec3::ZERO);
         }
+    }
+
+    /// Spheres in a corner of three walls, touching one, two or three of them, some holding
+    /// springs of walls they no longer touch: more contacts than one round of lanes holds, and
+    /// a particle whose contacts straddle two rounds (particle 19's two contacts are the 32nd
+    /// and 33rd). Each particle's force, torque, lost
+    /// energy and springs are bitwise what the laws give its walls one at a time, summed in wall
+    /// order ([`wall_lanes::wall_step`], the rolling law always evaluated).
+    #[test]
+    fn wall_contacts_in_lanes_sum_per_particle_in_wall_order() {
+        let mut text = plate_scene("").replace(
+            "friction_coefficient = 0.5",
+            "friction_coefficient = 0.5\nrolling_friction_coefficient = 0.1",
+        );
+        text += r#"
+[[walls]]
+point_m = [0.0, 0.0, 0.0]
+normal = [1.0, 0.0, 0.0]
+material = "m"
+[[walls]]
+point_m = [0.0, 0.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+material = "m"
+"#;
+        let radius = 2e-5;
+        let count = 30;
+        for k in 0..count {
+            // Bit w of (k % 7 + 1) says whether the sphere touches wall w (plate, x, y), by an
+            // overlap that grows with k.
+            let touching = k % 7 + 1;
+            let position = |w: usize, along: f64| {
+                if touching >> w & 1 == 1 {
+                    radius * (1.0 - 1e-3 * (1.0 + k as f64))
+                } else {
+                    along
+                }
+            };
+            let far = 2e-4 + 1e-4 * k as f64;
+            text += &format!(
+                "[[particles]]\nposition_m = [{:e}, {:e}, {:e}]\nvelocity_m_s = [{:e}, {:e}, {:e}]\nradius_m = {radius:e}\nmaterial = \"m\"\n",
+                position(1, far),
+                position(2, far),
+                position(0, far),
+                1e-3 * (k as f64 - 15.0),
+                -2e-3,
+                -1e-3 * (k % 3) as f64,
+            );
+        }
+        let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
+        let (model, mut particles) = Model::build(&scene);
+        assert_eq!(model.walls.len(), 3);
+        let mut rotation = Rotation::new(count, 3);
+        for (k, omega) in rotation.angular_velocity.iter_mut().enumerate() {
+            *omega = DVec3::new(100.0, -50.0 * (k % 4) as f64, 30.0);
+        }
+        // A spring on every (particle, wall) of every third particle: touching or not.
+        let spring = |k: usize, w: usize| TangentialSpring {
+            history: DVec3::new(1e-9, -2e-9, 0.5e-9) * (1.0 + (k + w) as f64),
+            spring_energy: 1e-15 * (1.0 + (k * 3 + w) as f64),
+        };
+        let entries = (0..count)
+            .filter(|k| k % 3 == 0)
+            .flat_map(|k| (0..3).map(move |w| (k, w, spring(k, w))));
+        rotation.wall_springs = crate::wall_history::WallSprings::from_entries(count, entries);
+        let before = (rotation.wall_springs.clone(), particles.clone());
+        set_weights(&mut particles.force, &particles.mass, model.gravity);
+        wall_pass(&model, &mut particles, &mut rotation, None);
+        let tables = model.friction.as_ref().expect("friction");
+        let mut contacts = 0;
+        for k in 0..count {
+            let (mut force, mut torque, mut lost) = (DVec3::ZERO, DVec3::ZERO, 0.0);
+            for w in 0..3 {
+                let held = before.0.get(k, w);
+                let overlap = wall_overlap(&model, &before.1, k, w);
+                if overlap <= 0.0 {
+                    lost += held.spring_energy;
+                    assert_eq!(rotation.wall_springs.get(k, w), TangentialSpring::default());
+                    continue;
+                }
+                contacts += 1;
+                let params = model.wall_params(w, 0);
+                let input = wall_lanes::WallInput {
+                    overlap,
+                    into_domain: model.walls[w].normal,
+                    radius,
+                    mass: particles.mass[k],
+                    velocity: particles.velocity[k],
+                    effective_modulus: params.effective_modulus,
+                    damping_ratio: params.damping_ratio,
+                    angular_velocity: rotation.angular_velocity[k],
+                    friction: *tables.wall(w, 0),
+                    held,
+                };
+                let out = wall_lanes::wall_step::<true, true>(model.dt, &input);
+                force += out.normal_force * model.walls[w].normal;
+                lost += out.damper_lost;
+                force += out.tangential_force;
+                torque += out.torque;
+                lost += out.tangential_lost;
+                assert_eq!(
+                    rotation.wall_springs.get(k, w),
+                    out.spring,
+                    "spring ({k}, {w})"
+                );
+            }
+            let weight = particles.mass[k] * model.gravity;
+            assert_eq!(particles.force[k], weight + force, "force on {k}");
+            assert_eq!(rotation.torque[k], torque, "torque on {k}");
+            assert_eq!(particles.dissipated[k], lost, "lost by {k}");
+        }
+        // Several rounds of lanes.
+        assert!(contacts > 3 * lanes::LANES, "{contacts} contacts");
     }
 
     /// Pairs that came apart while holding tangential springs: the pair pass does not meet

@@ -5,11 +5,12 @@
 
 use glam::DVec3;
 
-use super::{ForceSummary, PassHeat, TangentialContact, tangential_step, wall_overlap};
-use crate::contact::{self, PairKinematics, rolling};
+use super::lanes::{InstructionSet, LANES};
+use super::wall_lanes::{self, WallInput, WallLanes};
+use super::{ForceSummary, PassHeat, wall_overlap};
 use crate::model::Model;
 use crate::particles::{Particles, Rotation};
-use crate::scatter::{self, PerParticle, Scatter, Window};
+use crate::scatter::{self, Member, ParticleChunk, PerParticle, Scatter};
 use crate::thermal::{self, HeatSums, ThermalModel};
 use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
 
@@ -68,120 +69,104 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         sums: Scatter::new(h.sums),
         boundary_flow: Scatter::new(h.boundary_flow),
     });
+    let outputs = Outputs {
+        force: force_out,
+        lost: lost_out,
+        torque: torque.filter(|_| ROTATION),
+    };
+    let set = InstructionSet::detect();
+    // Known at compile time to be `None` where the instantiation leaves rotation out.
+    let friction = model.friction.as_ref().filter(|_| ROTATION);
+    assert!(
+        !ROTATION || friction.is_some(),
+        "a scene with rotation has friction tables (`Model::build`)"
+    );
     let visit = |summary: &mut ForceSummary,
                  springs: &mut Option<&mut Chunk>,
-                 window: &Window<'_>| {
-        // Known at compile time to be `None` where the instantiation leaves the physics out.
+                 chunk: &ParticleChunk<'_>| {
         let mut springs = springs.as_deref_mut().filter(|_| ROTATION);
-        let (omega, torque) = (
-            omega.filter(|_| ROTATION),
-            torque.as_ref().filter(|_| ROTATION),
-        );
         let heat = heat.as_ref().filter(|_| HEAT);
-        let particle = window.owner();
-        let k = particle.index();
-        // Most candidates touch no wall and hold no wall spring: without heat, they get
-        // nothing. (The full path below would add zeros to their force, lost energy and torque,
-        // which changes no bit of a finite sum, and observe a zero overlap.)
-        if !HEAT
-            && !(0..model.walls.len()).any(|w| wall_overlap(model, state, k, w) > 0.0)
-            && !springs
-                .as_deref_mut()
-                .is_some_and(|chunk| chunk.holds_any(k))
-        {
-            return;
-        }
-        let mut max_overlap: f64 = 0.0;
-        let mut force = DVec3::ZERO;
-        let mut torque_k = DVec3::ZERO;
-        let mut lost = 0.0;
-        for w in 0..model.walls.len() {
-            let overlap = wall_overlap(model, state, k, w);
-            if overlap <= 0.0 {
-                // The spring vanishes with the contact: what it held is lost.
-                if let Some(chunk) = springs.as_deref_mut() {
-                    lost += chunk.take(k, w).spring_energy;
-                }
+        let mut round = WallRound::new();
+        for window in chunk.windows() {
+            let particle = window.owner();
+            let k = particle.index();
+            // Most candidates touch no wall and hold no wall spring: without heat, they get
+            // nothing. (The full path below would add zeros to their force, lost energy and
+            // torque, which changes no bit of a finite sum, and observe a zero overlap.)
+            if !HEAT
+                && !(0..model.walls.len()).any(|w| wall_overlap(model, state, k, w) > 0.0)
+                && !springs
+                    .as_deref_mut()
+                    .is_some_and(|chunk| chunk.holds_any(k))
+            {
                 continue;
             }
-            max_overlap = max_overlap.max(overlap);
-            let into_domain = model.walls[w].normal;
-            let params = model.wall_params(w, state.material[k]);
-            // A fixed plane is the limit r_j, m_j → ∞: r* = r_k, m* = m_k.
-            let kinematics = PairKinematics {
-                overlap,
-                overlap_rate: -state.velocity[k].dot(into_domain),
-                effective_radius: state.radius[k],
-                effective_mass: state.mass[k],
-            };
-            let (normal_force, elastic) =
-                contact::hertz_parts(params.effective_modulus, params.damping_ratio, &kinematics);
-            force += normal_force * into_domain;
-            // (M.35): the wall's damper work over the step.
-            lost += model.dt * (normal_force - elastic) * kinematics.overlap_rate;
-            if let (Some(chunk), Some(omega), Some(tables)) =
-                (springs.as_deref_mut(), omega, model.friction.as_ref())
-            {
-                // The particle is the first body, the wall the second: the normal points into
-                // the wall.
-                let normal = -into_domain;
-                let arm = state.radius[k] - 0.5 * overlap;
-                let contact = TangentialContact {
-                    normal,
-                    contact_velocity: state.velocity[k] + (arm * omega[k]).cross(normal),
-                    relative_angular_velocity: omega[k],
-                    inverse_inertia_sum: 1.0
-                        / rolling::sphere_inertia(state.mass[k], state.radius[k]),
-                    normal_force,
-                    elastic_normal_force: elastic,
-                    bonded: false,
+            let mut max_overlap: f64 = 0.0;
+            for w in 0..model.walls.len() {
+                let overlap = wall_overlap(model, state, k, w);
+                if overlap <= 0.0 {
+                    // The spring vanishes with the contact: what it held is lost.
+                    if let Some(chunk) = springs.as_deref_mut() {
+                        round.release(chunk.take(k, w).spring_energy);
+                    }
+                    continue;
+                }
+                max_overlap = max_overlap.max(overlap);
+                let params = model.wall_params(w, state.material[k]);
+                let (angular_velocity, friction, held) = match (friction, springs.as_deref_mut()) {
+                    (Some(tables), Some(chunk)) => (
+                        omega.map_or(DVec3::ZERO, |omega| omega[k]),
+                        *tables.wall(w, state.material[k]),
+                        chunk.take(k, w),
+                    ),
+                    _ => Default::default(),
                 };
-                let step = tangential_step::<true>(
-                    tables.wall(w, state.material[k]),
-                    params.damping_ratio,
-                    model.dt,
-                    &kinematics,
-                    &contact,
-                    chunk.take(k, w),
-                );
-                force += step.force;
-                torque_k += arm * normal.cross(step.force) + step.rolling_torque;
-                lost += step.lost;
-                chunk.keep(k, w, step.spring);
+                let input = WallInput {
+                    overlap,
+                    into_domain: model.walls[w].normal,
+                    radius: state.radius[k],
+                    mass: state.mass[k],
+                    velocity: state.velocity[k],
+                    effective_modulus: params.effective_modulus,
+                    damping_ratio: params.damping_ratio,
+                    angular_velocity,
+                    friction,
+                    held,
+                };
+                if round.contact::<ROTATION>(particle, w, &input) {
+                    round.write_back::<ROTATION>(model, set, &outputs, springs.as_deref_mut());
+                }
             }
+            round.end_particle(particle);
+            let heat_rate = heat.map_or(0.0, |h| {
+                let mut added = None;
+                if h.exchange {
+                    let (outside, outside_conductance) =
+                        thermal::boundary_heat(h.model, &model.walls, state, k, h.temperature[k]);
+                    h.boundary_flow.update(particle, |_| outside);
+                    h.sums.update(particle, |s| HeatSums {
+                        conductance: s.conductance + outside_conductance,
+                        ..s
+                    });
+                    added = Some(outside);
+                }
+                if let Some(laser_power) = h.laser_power {
+                    added = Some(added.unwrap_or(0.0) + laser_power[k]);
+                }
+                if let Some(added) = added {
+                    h.sums.update(particle, |s| HeatSums {
+                        flow: s.flow + added,
+                        ..s
+                    });
+                }
+                h.sums.read(particle).conductance / h.heat_capacity[k]
+            });
+            summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
+            summary.observe_overlap(max_overlap / state.radius[k], k);
         }
-        force_out.update(particle, |f| f + force);
-        lost_out.update(particle, |l| l + lost);
-        if let Some(t) = torque {
-            t.update(particle, |t| t + torque_k);
-        }
-        let heat_rate = heat.map_or(0.0, |h| {
-            let mut added = None;
-            if h.exchange {
-                let (outside, outside_conductance) =
-                    thermal::boundary_heat(h.model, &model.walls, state, k, h.temperature[k]);
-                h.boundary_flow.update(particle, |_| outside);
-                h.sums.update(particle, |s| HeatSums {
-                    conductance: s.conductance + outside_conductance,
-                    ..s
-                });
-                added = Some(outside);
-            }
-            if let Some(laser_power) = h.laser_power {
-                added = Some(added.unwrap_or(0.0) + laser_power[k]);
-            }
-            if let Some(added) = added {
-                h.sums.update(particle, |s| HeatSums {
-                    flow: s.flow + added,
-                    ..s
-                });
-            }
-            h.sums.read(particle).conductance / h.heat_capacity[k]
-        });
-        summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
-        summary.observe_overlap(max_overlap / state.radius[k], k);
+        round.write_back::<ROTATION>(model, set, &outputs, springs);
     };
-    let summary = scatter::for_each_particle(
+    let summary = scatter::for_each_chunk(
         count,
         PARTICLES_PER_CHUNK,
         listed,
@@ -210,4 +195,115 @@ struct ParticleHeat<'a> {
     /// Net heat flow \[W\] and total conductance [W/K].
     sums: Scatter<'a, HeatSums, PerParticle>,
     boundary_flow: Scatter<'a, f64, PerParticle>,
+}
+
+/// The per-particle arrays the wall contacts add into.
+struct Outputs<'a> {
+    force: Scatter<'a, DVec3, PerParticle>,
+    lost: Scatter<'a, f64, PerParticle>,
+    torque: Option<Scatter<'a, DVec3, PerParticle>>,
+}
+
+/// What happened at one wall of one particle, in the order of the particles and their walls:
+/// what [`WallRound::write_back`] replays, so that every particle's sums are formed in that order.
+#[derive(Debug, Clone, Copy)]
+enum WallEvent<'c> {
+    /// A contact, whose laws run in the next lane of the round.
+    Contact { particle: Member<'c>, wall: usize },
+    /// A wall spring of a contact that ended, holding `energy` \[J\]: lost.
+    Released { energy: f64 },
+    /// The particle's walls are done: its sums are written.
+    End { particle: Member<'c> },
+}
+
+/// The wall contacts of a chunk's particles on their way through the wall kernel: the lanes
+/// being filled, the events since the last write-back, and the sums of the particle being
+/// written back (a particle's contacts may straddle two rounds).
+struct WallRound<'c> {
+    lanes: WallLanes,
+    filled: usize,
+    events: Vec<WallEvent<'c>>,
+    /// Force \[N\], torque [N·m] and lost energy \[J\] of the particle's walls written back so
+    /// far, for its [`WallEvent::End`].
+    sums: (DVec3, DVec3, f64),
+}
+
+impl<'c> WallRound<'c> {
+    /// An empty round.
+    fn new() -> Self {
+        Self {
+            lanes: WallLanes::default(),
+            filled: 0,
+            events: Vec::with_capacity(2 * LANES),
+            sums: (DVec3::ZERO, DVec3::ZERO, 0.0),
+        }
+    }
+
+    /// A wall spring that held `energy` \[J\] is lost.
+    fn release(&mut self, energy: f64) {
+        self.events.push(WallEvent::Released { energy });
+    }
+
+    /// `particle` touches wall `wall`: its laws go into the next lane. Returns whether the
+    /// lanes are full, to be written back before the next contact.
+    fn contact<const FRICTION: bool>(
+        &mut self,
+        particle: Member<'c>,
+        wall: usize,
+        input: &WallInput,
+    ) -> bool {
+        self.lanes.set::<FRICTION>(self.filled, input);
+        self.filled += 1;
+        self.events.push(WallEvent::Contact { particle, wall });
+        self.filled == LANES
+    }
+
+    /// `particle`'s walls are done.
+    fn end_particle(&mut self, particle: Member<'c>) {
+        self.events.push(WallEvent::End { particle });
+    }
+
+    /// Runs the laws of the filled lanes and writes back every event in order: each particle's
+    /// force, lost energy and torque summed over its walls and added once, its springs kept.
+    fn write_back<const FRICTION: bool>(
+        &mut self,
+        model: &Model,
+        set: InstructionSet,
+        outputs: &Outputs<'_>,
+        mut springs: Option<&mut Chunk>,
+    ) {
+        if self.filled > 0 {
+            wall_lanes::run::<FRICTION>(set, model.dt, &mut self.lanes);
+        }
+        let (mut force, mut torque, mut lost) = self.sums;
+        let mut lane = 0;
+        for event in self.events.drain(..) {
+            match event {
+                WallEvent::Released { energy } => lost += energy,
+                WallEvent::Contact { particle, wall } => {
+                    let out = self.lanes.output::<FRICTION>(lane);
+                    lane += 1;
+                    force += out.normal_force * model.walls[wall].normal;
+                    lost += out.damper_lost;
+                    if let Some(chunk) = springs.as_deref_mut().filter(|_| FRICTION) {
+                        force += out.tangential_force;
+                        torque += out.torque;
+                        lost += out.tangential_lost;
+                        chunk.keep(particle.index(), wall, out.spring);
+                    }
+                }
+                WallEvent::End { particle } => {
+                    outputs.force.update(particle, |f| f + force);
+                    outputs.lost.update(particle, |l| l + lost);
+                    if let Some(t) = &outputs.torque {
+                        t.update(particle, |t| t + torque);
+                    }
+                    (force, torque, lost) = (DVec3::ZERO, DVec3::ZERO, 0.0);
+                }
+            }
+        }
+        debug_assert_eq!(lane, self.filled, "every lane filled is written back");
+        self.filled = 0;
+        self.sums = (force, torque, lost);
+    }
 }

@@ -1,0 +1,417 @@
+//! The wall kernel: the laws of up to [`LANES`] particle–wall contacts at once, as
+//! [`super::lanes`] runs those of pairs.
+//!
+//! A wall contact's laws are the same chain of square roots and divisions as a pair's (√(r δ),
+//! the damping's √(m k), the tangential spring's and the history's), and on a layer spread on a
+//! plate nearly half the particles touch it (`scenes/bed.toml`: 2,313 wall contacts for 5,166
+//! particles). One contact after the other, the particle pass took a quarter of that scene's run;
+//! here the contacts of a chunk of particles are gathered into lanes and the laws run over them
+//! in one loop, which the compiler vectorises. The lanes hold the same numbers and the laws do
+//! the same operations in the same order as one contact at a time, so every build gives bitwise
+//! the same (tested below), and so does the pass that wrote each contact out one by one.
+
+use glam::DVec3;
+
+use super::lanes::{InstructionSet, LANES, Lane, Lane3, LaneLoop, dispatch};
+use super::{TangentialContact, tangential_step};
+use crate::contact::tangential::TangentialSpring;
+use crate::contact::{self, FrictionParams, PairKinematics, rolling};
+
+/// What the laws need of one particle touching one plane wall.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct WallInput {
+    /// Overlap δ = r − (x − p)·n > 0 \[m\].
+    pub overlap: f64,
+    /// The wall's unit normal n, into the domain.
+    pub into_domain: DVec3,
+    /// The particle's radius \[m\], mass \[kg\] and velocity \[m/s\]: a fixed plane is the limit
+    /// r_j, m_j → ∞ of a pair, so r* = r and m* = m.
+    pub radius: f64,
+    pub mass: f64,
+    pub velocity: DVec3,
+    /// Normal-law parameters of the wall and the particle's material.
+    pub effective_modulus: f64,
+    pub damping_ratio: f64,
+    /// With friction: the particle's angular velocity [rad/s], the friction parameters of the
+    /// wall and its material, and the spring the last pass left.
+    pub angular_velocity: DVec3,
+    pub friction: FrictionParams,
+    pub held: TangentialSpring,
+}
+
+/// What the laws give one wall contact over the step, in the parts the pass adds one after the
+/// other (so that each particle's sums are formed in the same order as ever).
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct WallOutput {
+    /// Normal force along `into_domain` \[N\] (positive: pushes the particle off the wall).
+    pub normal_force: f64,
+    /// The wall's damper work over the step \[J\] (M.35).
+    pub damper_lost: f64,
+    /// With friction: tangential force \[N\] and torque [N·m] on the particle, the energy the
+    /// tangential and rolling laws took \[J\] (M.63), and the spring after the step.
+    pub tangential_force: DVec3,
+    pub torque: DVec3,
+    pub tangential_lost: f64,
+    pub spring: TangentialSpring,
+}
+
+/// The laws of one particle touching one plane wall over one step: Hertz with viscous damping
+/// (eq. 26, M.10) with r* = r and m* = m, the damper's work (M.35), and with `FRICTION` the
+/// tangential spring and rolling resistance (M.57–M.63), the particle the first body and the
+/// wall the second, with the lever arm to the middle of the overlap (M.60). Without `ROLLING`
+/// the contact must have `μ_r = 0`, whose rolling torque is zero: it is then not evaluated.
+#[inline(always)]
+#[must_use]
+pub(super) fn wall_step<const FRICTION: bool, const ROLLING: bool>(
+    dt: f64,
+    input: &WallInput,
+) -> WallOutput {
+    let kinematics = PairKinematics {
+        overlap: input.overlap,
+        overlap_rate: -input.velocity.dot(input.into_domain),
+        effective_radius: input.radius,
+        effective_mass: input.mass,
+    };
+    let (normal_force, elastic) =
+        contact::hertz_parts(input.effective_modulus, input.damping_ratio, &kinematics);
+    let mut out = WallOutput {
+        normal_force,
+        damper_lost: dt * (normal_force - elastic) * kinematics.overlap_rate,
+        ..WallOutput::default()
+    };
+    if FRICTION {
+        // The particle is the first body, the wall the second: the normal points into the wall.
+        let normal = -input.into_domain;
+        let arm = input.radius - 0.5 * input.overlap;
+        let omega = input.angular_velocity;
+        let contact = TangentialContact {
+            normal,
+            contact_velocity: input.velocity + (arm * omega).cross(normal),
+            relative_angular_velocity: omega,
+            // Only the rolling law needs it.
+            inverse_inertia_sum: if ROLLING && input.friction.rolling > 0.0 {
+                1.0 / rolling::sphere_inertia(input.mass, input.radius)
+            } else {
+                0.0
+            },
+            normal_force,
+            elastic_normal_force: elastic,
+            bonded: false,
+        };
+        let step = tangential_step::<ROLLING>(
+            &input.friction,
+            input.damping_ratio,
+            dt,
+            &kinematics,
+            &contact,
+            input.held,
+        );
+        out.tangential_force = step.force;
+        out.torque = arm * normal.cross(step.force) + step.rolling_torque;
+        out.tangential_lost = step.lost;
+        out.spring = step.spring;
+    }
+    out
+}
+
+/// Up to [`LANES`] wall contacts, one array per quantity, and what the laws gave them.
+#[derive(Debug, Clone, Default)]
+pub(super) struct WallLanes {
+    overlap: Lane<f64>,
+    into_domain: Lane3,
+    radius: Lane<f64>,
+    mass: Lane<f64>,
+    velocity: Lane3,
+    effective_modulus: Lane<f64>,
+    damping_ratio: Lane<f64>,
+    angular_velocity: Lane3,
+    shear_modulus: Lane<f64>,
+    sliding: Lane<f64>,
+    rolling: Lane<f64>,
+    held_history: Lane3,
+    held_energy: Lane<f64>,
+    normal_force: Lane<f64>,
+    damper_lost: Lane<f64>,
+    tangential_force: Lane3,
+    torque: Lane3,
+    tangential_lost: Lane<f64>,
+    spring_history: Lane3,
+    spring_energy: Lane<f64>,
+}
+
+impl WallLanes {
+    /// Puts `input` into lane `i`.
+    #[inline(always)]
+    pub(super) fn set<const FRICTION: bool>(&mut self, i: usize, input: &WallInput) {
+        self.overlap[i] = input.overlap;
+        self.into_domain.set(i, input.into_domain);
+        self.radius[i] = input.radius;
+        self.mass[i] = input.mass;
+        self.velocity.set(i, input.velocity);
+        self.effective_modulus[i] = input.effective_modulus;
+        self.damping_ratio[i] = input.damping_ratio;
+        if FRICTION {
+            self.angular_velocity.set(i, input.angular_velocity);
+            self.shear_modulus[i] = input.friction.effective_shear_modulus;
+            self.sliding[i] = input.friction.sliding;
+            self.rolling[i] = input.friction.rolling;
+            self.held_history.set(i, input.held.history);
+            self.held_energy[i] = input.held.spring_energy;
+        }
+    }
+
+    #[inline(always)]
+    fn input<const FRICTION: bool>(&self, i: usize) -> WallInput {
+        let mut input = WallInput {
+            overlap: self.overlap[i],
+            into_domain: self.into_domain.get(i),
+            radius: self.radius[i],
+            mass: self.mass[i],
+            velocity: self.velocity.get(i),
+            effective_modulus: self.effective_modulus[i],
+            damping_ratio: self.damping_ratio[i],
+            ..WallInput::default()
+        };
+        if FRICTION {
+            input.angular_velocity = self.angular_velocity.get(i);
+            input.friction = FrictionParams {
+                effective_shear_modulus: self.shear_modulus[i],
+                sliding: self.sliding[i],
+                rolling: self.rolling[i],
+            };
+            input.held = TangentialSpring {
+                history: self.held_history.get(i),
+                spring_energy: self.held_energy[i],
+            };
+        }
+        input
+    }
+
+    #[inline(always)]
+    fn store<const FRICTION: bool>(&mut self, i: usize, out: &WallOutput) {
+        self.normal_force[i] = out.normal_force;
+        self.damper_lost[i] = out.damper_lost;
+        if FRICTION {
+            self.tangential_force.set(i, out.tangential_force);
+            self.torque.set(i, out.torque);
+            self.tangential_lost[i] = out.tangential_lost;
+            self.spring_history.set(i, out.spring.history);
+            self.spring_energy[i] = out.spring.spring_energy;
+        }
+    }
+
+    /// What the laws gave lane `i` (after [`run`]).
+    #[inline(always)]
+    pub(super) fn output<const FRICTION: bool>(&self, i: usize) -> WallOutput {
+        let mut out = WallOutput {
+            normal_force: self.normal_force[i],
+            damper_lost: self.damper_lost[i],
+            ..WallOutput::default()
+        };
+        if FRICTION {
+            out.tangential_force = self.tangential_force.get(i);
+            out.torque = self.torque.get(i);
+            out.tangential_lost = self.tangential_lost[i];
+            out.spring = TangentialSpring {
+                history: self.spring_history.get(i),
+                spring_energy: self.spring_energy[i],
+            };
+        }
+        out
+    }
+}
+
+/// The laws over every lane (those past the batch's count hold stale inputs, which cost the
+/// same and whose results nobody reads).
+struct WallKernel<'l, const FRICTION: bool, const ROLLING: bool> {
+    dt: f64,
+    lanes: &'l mut WallLanes,
+}
+
+impl<const FRICTION: bool, const ROLLING: bool> LaneLoop for WallKernel<'_, FRICTION, ROLLING> {
+    #[inline(always)]
+    fn run(self) {
+        for i in 0..LANES {
+            let input = self.lanes.input::<FRICTION>(i);
+            let out = wall_step::<FRICTION, ROLLING>(self.dt, &input);
+            self.lanes.store::<FRICTION>(i, &out);
+        }
+    }
+}
+
+/// Runs the laws over every lane with the kernel built for `set`, over a step of `dt` \[s\].
+#[inline]
+pub(super) fn run<const FRICTION: bool>(set: InstructionSet, dt: f64, lanes: &mut WallLanes) {
+    // In a vector kernel every lane evaluates the rolling law, even where μ_r = 0; a batch
+    // without rolling resistance skips it.
+    if FRICTION && lanes.rolling.iter().any(|&coefficient| coefficient != 0.0) {
+        dispatch(set, WallKernel::<FRICTION, true> { dt, lanes });
+    } else {
+        dispatch(set, WallKernel::<FRICTION, false> { dt, lanes });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::hertz;
+    use crate::study::scenes::{PAPER_E_STAR, PAPER_RADIUS, paper_sphere_mass};
+
+    const DT: f64 = 1e-7;
+
+    /// A deterministic spread of wall contacts: overlaps from grazing to 2 % of the radius, on
+    /// walls of three orientations, approach and separation, springs from none to far past the
+    /// Coulomb limit (some lanes stick, some slide), spins with and without rolling resistance
+    /// (every other batch has none, which the kernel runs without the rolling law).
+    fn inputs(count: usize) -> Vec<WallInput> {
+        let mut random = crate::bed::rng::SplitMix64(0x5eed_0f3a);
+        let mut vector =
+            |scale: f64| DVec3::new(random.unit(), random.unit(), random.unit()) * scale;
+        let mass = paper_sphere_mass(8000.0);
+        let normals = [DVec3::Z, DVec3::X, DVec3::new(0.0, -0.6, 0.8)];
+        (0..count)
+            .map(|k| {
+                let [u, v, w] = vector(1.0).to_array();
+                WallInput {
+                    overlap: 0.02 * PAPER_RADIUS * u,
+                    into_domain: normals[k % 3],
+                    radius: PAPER_RADIUS * (0.8 + 0.4 * v),
+                    mass: mass * (0.5 + w),
+                    velocity: vector(0.4) - DVec3::splat(0.2),
+                    effective_modulus: PAPER_E_STAR,
+                    damping_ratio: 0.2,
+                    angular_velocity: vector(600.0) - DVec3::splat(300.0),
+                    friction: FrictionParams {
+                        effective_shear_modulus: 0.4 * PAPER_E_STAR,
+                        sliding: if k % 5 == 0 { 0.0 } else { 0.5 },
+                        rolling: if k % 4 == 0 || (k / LANES) % 2 == 0 {
+                            0.0
+                        } else {
+                            0.1
+                        },
+                    },
+                    held: TangentialSpring {
+                        history: vector(if k % 7 < 4 { 1e-7 } else { 1e-4 })
+                            - DVec3::splat(if k % 7 < 4 { 5e-8 } else { 5e-5 }),
+                        spring_energy: 1e-9 * vector(1.0).x,
+                    },
+                }
+            })
+            .collect()
+    }
+
+    fn bits(out: &WallOutput) -> Vec<u64> {
+        [out.tangential_force, out.torque, out.spring.history]
+            .iter()
+            .flat_map(|v| v.to_array())
+            .chain([
+                out.normal_force,
+                out.damper_lost,
+                out.tangential_lost,
+                out.spring.spring_energy,
+            ])
+            .map(f64::to_bits)
+            .collect()
+    }
+
+    /// Every build of the kernel gives bitwise what the laws give one contact at a time (with
+    /// the rolling law always evaluated, as the particle pass once did), with lanes reused from
+    /// round to round as the pass reuses them.
+    fn check<const FRICTION: bool>() {
+        let inputs = inputs(16 * LANES);
+        let (mut sliding, mut sticking, mut rolling) = (0, 0, 0);
+        let sets = InstructionSet::available();
+        let mut reused = vec![WallLanes::default(); sets.len()];
+        for batch in inputs.chunks(LANES) {
+            rolling += usize::from(batch.iter().any(|input| input.friction.rolling != 0.0));
+            let one_by_one: Vec<WallOutput> = batch
+                .iter()
+                .map(|input| wall_step::<FRICTION, true>(DT, std::hint::black_box(input)))
+                .collect();
+            for (&set, lanes) in sets.iter().zip(&mut reused) {
+                for (i, input) in batch.iter().enumerate() {
+                    lanes.set::<FRICTION>(i, input);
+                }
+                run::<FRICTION>(set, DT, lanes);
+                for (i, expected) in one_by_one.iter().enumerate() {
+                    let out = lanes.output::<FRICTION>(i);
+                    assert_eq!(bits(&out), bits(expected), "{set:?}, lane {i}");
+                }
+            }
+            for (input, out) in batch.iter().zip(&one_by_one) {
+                if FRICTION && input.friction.sliding > 0.0 {
+                    // A sliding spring is cut back to the Coulomb limit, by far more than the
+                    // step's v_t dt can change its length.
+                    if out.spring.history.length() < 0.9 * input.held.history.length() {
+                        sliding += 1;
+                    } else {
+                        sticking += 1;
+                    }
+                }
+            }
+        }
+        if FRICTION {
+            assert!(
+                sliding > 0 && sticking > 0,
+                "{sliding} sliding, {sticking} sticking"
+            );
+        }
+        assert!(
+            rolling > 0 && rolling < inputs.len() / LANES,
+            "{rolling} rolling batches"
+        );
+    }
+
+    #[test]
+    fn every_build_gives_bitwise_the_contact_by_contact_laws_with_friction() {
+        check::<true>();
+    }
+
+    #[test]
+    fn every_build_gives_bitwise_the_contact_by_contact_laws_without_friction() {
+        check::<false>();
+    }
+
+    /// A sphere resting on a wall (no approach) feels the Hertz force of a sphere against a
+    /// half-space, F = (4/3) E* √r δ^{3/2} (r* = r), its damper does no work, and a spring-free
+    /// contact at rest gets no tangential force; approaching, the damper adds to the force and
+    /// takes energy, F_d δ̇ dt > 0.
+    #[test]
+    fn a_sphere_on_a_wall_feels_the_hertz_force_of_a_half_space() {
+        let (radius, overlap) = (PAPER_RADIUS, 1e-3 * PAPER_RADIUS);
+        let at_rest = WallInput {
+            overlap,
+            into_domain: DVec3::Z,
+            radius,
+            mass: paper_sphere_mass(8000.0),
+            effective_modulus: PAPER_E_STAR,
+            damping_ratio: 0.2,
+            friction: FrictionParams {
+                effective_shear_modulus: 0.4 * PAPER_E_STAR,
+                sliding: 0.5,
+                rolling: 0.1,
+            },
+            ..WallInput::default()
+        };
+        let out = wall_step::<true, true>(DT, &at_rest);
+        let closed_form = 4.0 / 3.0 * PAPER_E_STAR * radius.sqrt() * overlap.powf(1.5);
+        // Two square roots and a few products apart: a few ulps.
+        assert!((out.normal_force - closed_form).abs() <= 1e-14 * closed_form);
+        assert_eq!(
+            out.normal_force,
+            hertz::elastic_force(PAPER_E_STAR, radius, overlap)
+        );
+        assert_eq!(out.damper_lost, 0.0);
+        assert_eq!(out.tangential_force, DVec3::ZERO);
+        assert_eq!(out.torque, DVec3::ZERO);
+        // Approaching the wall at 0.1 m/s.
+        let approaching = WallInput {
+            velocity: DVec3::new(0.0, 0.0, -0.1),
+            ..at_rest
+        };
+        let out = wall_step::<true, true>(DT, &approaching);
+        assert!(out.normal_force > closed_form);
+        let damper = out.normal_force - closed_form;
+        assert!((out.damper_lost - damper * 0.1 * DT).abs() <= 1e-12 * out.damper_lost);
+    }
+}
