@@ -782,45 +782,6 @@ impl<'v, T> Opened<'_, 'v, T, PerSlab> {
     }
 }
 
-/// Calls `visit(partial, state, window)` once for every particle `0..count` (or, with `listed`,
-/// for each particle it names), with a window allowing that particle alone: [`for_each_chunk`]
-/// with each chunk's particles visited in ascending order.
-///
-/// # Panics
-/// As [`for_each_chunk`].
-#[allow(clippy::too_many_arguments)]
-pub fn for_each_particle<S, R, V, M>(
-    count: usize,
-    chunk_len: usize,
-    listed: Option<&[u32]>,
-    states: &mut [S],
-    parallel: bool,
-    identity: R,
-    visit: V,
-    merge: M,
-) -> R
-where
-    S: Send,
-    R: Clone + Send + Sync,
-    V: Fn(&mut R, &mut S, &Window<'_>) + Sync,
-    M: Fn(R, R) -> R + Sync + Send,
-{
-    for_each_chunk(
-        count,
-        chunk_len,
-        listed,
-        states,
-        parallel,
-        identity,
-        |partial, state, chunk| {
-            for window in chunk.windows() {
-                visit(partial, state, &window);
-            }
-        },
-        merge,
-    )
-}
-
 /// Calls `visit(partial, state, chunk)` once for every chunk of `chunk_len` consecutive
 /// particles of `0..count`, which hands out a window for each of its particles (with `listed`:
 /// each it names) in ascending order, with the chunk's own `states[c]` (so a visit may keep
@@ -1108,8 +1069,7 @@ mod tests {
     }
 
     /// A pass over chunks hands out each particle (or each listed one) once, in its own chunk,
-    /// ascending, and merges the chunks' partials; a pass over particles is that pass one window
-    /// at a time.
+    /// ascending, and merges the chunks' partials.
     #[test]
     fn a_pass_over_chunks_hands_out_each_particle_once_in_its_chunk() {
         let count = 23;
@@ -1143,17 +1103,6 @@ mod tests {
             let mut seen = seen;
             seen.sort_unstable();
             assert_eq!(seen, expected);
-            let one_by_one = for_each_particle(
-                count,
-                chunk_len,
-                listed,
-                &mut chunks,
-                parallel,
-                0,
-                |sum: &mut usize, _, window| *sum += window.owner().index(),
-                |a, b| a + b,
-            );
-            assert_eq!(one_by_one, expected.iter().sum::<usize>());
         }
     }
 }

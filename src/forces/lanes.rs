@@ -830,7 +830,7 @@ impl KernelBench {
 }
 
 #[cfg(test)]
-mod tests {
+pub(in crate::forces) mod tests {
     use super::*;
     use crate::contact::BondParams;
     use crate::scene::Scene;
@@ -900,24 +900,35 @@ mod tests {
                     },
                     criterion: k % 2 == 0 && (k / LANES) % 3 == 2,
                     angular_velocity: [random.vector(300.0), random.vector(300.0)],
-                    friction: FrictionParams {
-                        effective_shear_modulus: 0.4 * PAPER_E_STAR,
-                        sliding: if k % 5 == 0 { 0.0 } else { 0.5 },
-                        // Every other batch without rolling resistance, which the kernel
-                        // skips.
-                        rolling: if k % 4 == 0 || (k / LANES) % 2 == 0 {
-                            0.0
-                        } else {
-                            0.1
-                        },
-                    },
+                    friction: friction_of(k),
                     held: TangentialSpring {
-                        history: random.vector(if k % 7 < 4 { 1e-7 } else { 1e-4 }),
+                        history: random.vector(held_scale(k)),
                         spring_energy: 1e-9 * random.uniform(),
                     },
                 }
             })
             .collect()
+    }
+
+    /// The friction parameters of test contact `k` (of the paper's material): every fifth
+    /// without sliding friction, every other batch of [`LANES`] without rolling resistance,
+    /// which the kernels skip.
+    pub(in crate::forces) fn friction_of(k: usize) -> FrictionParams {
+        FrictionParams {
+            effective_shear_modulus: 0.4 * PAPER_E_STAR,
+            sliding: if k % 5 == 0 { 0.0 } else { 0.5 },
+            rolling: if k % 4 == 0 || (k / LANES) % 2 == 0 {
+                0.0
+            } else {
+                0.1
+            },
+        }
+    }
+
+    /// The size of test contact `k`'s held spring \[m\]: within the Coulomb limit for four of
+    /// every seven, far past it for the others (so that some lanes stick and some slide).
+    pub(in crate::forces) fn held_scale(k: usize) -> f64 {
+        if k % 7 < 4 { 1e-7 } else { 1e-4 }
     }
 
     fn bits(out: &ContactOutput) -> Vec<u64> {

@@ -255,6 +255,7 @@ pub(super) fn run<const FRICTION: bool>(set: InstructionSet, dt: f64, lanes: &mu
 mod tests {
     use super::*;
     use crate::contact::hertz;
+    use crate::forces::lanes::tests::{friction_of, held_scale};
     use crate::study::scenes::{PAPER_E_STAR, PAPER_RADIUS, paper_sphere_mass};
 
     const DT: f64 = 1e-7;
@@ -262,7 +263,8 @@ mod tests {
     /// A deterministic spread of wall contacts: overlaps from grazing to 2 % of the radius, on
     /// walls of three orientations, approach and separation, springs from none to far past the
     /// Coulomb limit (some lanes stick, some slide), spins with and without rolling resistance
-    /// (every other batch has none, which the kernel runs without the rolling law).
+    /// (every other batch has none, which the kernel runs without the rolling law): the pair
+    /// kernel's test parameters (`lanes::tests`).
     fn inputs(count: usize) -> Vec<WallInput> {
         let mut random = crate::bed::rng::SplitMix64(0x5eed_0f3a);
         let mut vector =
@@ -281,18 +283,9 @@ mod tests {
                     effective_modulus: PAPER_E_STAR,
                     damping_ratio: 0.2,
                     angular_velocity: vector(600.0) - DVec3::splat(300.0),
-                    friction: FrictionParams {
-                        effective_shear_modulus: 0.4 * PAPER_E_STAR,
-                        sliding: if k % 5 == 0 { 0.0 } else { 0.5 },
-                        rolling: if k % 4 == 0 || (k / LANES) % 2 == 0 {
-                            0.0
-                        } else {
-                            0.1
-                        },
-                    },
+                    friction: friction_of(k),
                     held: TangentialSpring {
-                        history: vector(if k % 7 < 4 { 1e-7 } else { 1e-4 })
-                            - DVec3::splat(if k % 7 < 4 { 5e-8 } else { 5e-5 }),
+                        history: vector(held_scale(k)) - DVec3::splat(0.5 * held_scale(k)),
                         spring_energy: 1e-9 * vector(1.0).x,
                     },
                 }
