@@ -138,6 +138,11 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
                 }
             }
             round.end_particle(particle);
+            if round.filled == 0 {
+                // Nothing waits on the kernel (a particle off the walls, with heat): its events
+                // are written now, so that they do not pile up over the chunk.
+                round.write_back::<ROTATION>(model, set, &outputs, springs.as_deref_mut());
+            }
             let heat_rate = heat.map_or(0.0, |h| {
                 let mut added = None;
                 if h.exchange {
