@@ -1,7 +1,9 @@
 //! The particle pass: what each particle adds on its own after the pair pass (gravity is set by
 //! the drift): its wall contacts (normal, and with rotation tangential and rolling), with
 //! `[thermal]` its boundary heat and laser power, and the wall overlaps for the run's guard.
-//! Parallel over particles, each writing only its own entries.
+//! Parallel over chunks of particles, each particle writing only its own entries. A chunk's wall
+//! contacts fill lanes of 16, whose laws run vectorised ([`super::wall_lanes`]), and a round's
+//! write-back replays each particle's walls in order ([`WallRound`]).
 
 use glam::DVec3;
 
