@@ -464,37 +464,63 @@ pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool, const ROLLIN
 }
 
 /// The laws over every lane (those past the batch's count hold stale inputs, which cost the same
-/// and whose results nobody reads).
-#[inline(always)]
-fn kernel<const BONDS: bool, const FRICTION: bool, const ROLLING: bool>(
-    model: &Model,
-    lanes: &mut ContactLanes,
-) {
-    for i in 0..LANES {
-        let input = lanes.input::<BONDS, FRICTION>(i);
-        let out = contact_step::<BONDS, FRICTION, ROLLING>(model, &input);
-        lanes.store::<BONDS, FRICTION>(i, &out);
+/// and whose results nobody reads), compiled for each build by [`dispatch`].
+struct PairKernel<'a, const BONDS: bool, const FRICTION: bool, const ROLLING: bool> {
+    model: &'a Model,
+    lanes: &'a mut ContactLanes,
+}
+
+impl<const BONDS: bool, const FRICTION: bool, const ROLLING: bool> LaneLoop
+    for PairKernel<'_, BONDS, FRICTION, ROLLING>
+{
+    #[inline(always)]
+    fn run(self) {
+        for i in 0..LANES {
+            let input = self.lanes.input::<BONDS, FRICTION>(i);
+            let out = contact_step::<BONDS, FRICTION, ROLLING>(self.model, &input);
+            self.lanes.store::<BONDS, FRICTION>(i, &out);
+        }
     }
 }
 
-/// The kernel compiled for AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn kernel_avx2<const BONDS: bool, const FRICTION: bool, const ROLLING: bool>(
-    model: &Model,
-    lanes: &mut ContactLanes,
-) {
-    kernel::<BONDS, FRICTION, ROLLING>(model, lanes);
+/// A loop over the lanes whose body [`dispatch`] compiles for each build (the pair kernel, and
+/// the wall kernel of `wall_lanes`): its `run` must be `#[inline(always)]`, so that it is
+/// compiled into the build's function, with its instructions.
+pub(super) trait LaneLoop {
+    /// The loop.
+    fn run(self);
 }
 
-/// The kernel compiled for AVX-512 (F, DQ, VL): the [`LANES`] contacts of a batch in one vector.
+/// Runs `lanes` compiled for `set`.
+#[inline]
+#[allow(unsafe_code)]
+pub(super) fn dispatch<L: LaneLoop>(set: InstructionSet, lanes: L) {
+    #[cfg(target_arch = "x86_64")]
+    match set.width {
+        // SAFETY: a width above the baseline is only made where the processor has its
+        // instructions (`InstructionSet::available`).
+        Width::Avx512 => unsafe { loop_avx512(lanes) },
+        // SAFETY: as above.
+        Width::Avx2 => unsafe { loop_avx2(lanes) },
+        Width::Baseline => lanes.run(),
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    lanes.run();
+}
+
+/// A [`LaneLoop`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn loop_avx2<L: LaneLoop>(lanes: L) {
+    lanes.run();
+}
+
+/// A [`LaneLoop`] compiled for AVX-512 (F, DQ, VL): the [`LANES`] contacts of a batch in two
+/// vectors.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl")]
-fn kernel_avx512<const BONDS: bool, const FRICTION: bool, const ROLLING: bool>(
-    model: &Model,
-    lanes: &mut ContactLanes,
-) {
-    kernel::<BONDS, FRICTION, ROLLING>(model, lanes);
+fn loop_avx512<L: LaneLoop>(lanes: L) {
+    lanes.run();
 }
 
 /// Which build of the kernel [`run`] takes. Made only by [`InstructionSet::detect`] and
@@ -646,80 +672,17 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool>(
 
 /// [`run`] for one combination, with the rolling law if `rolling`.
 #[inline]
-#[allow(unsafe_code)]
 fn run_build<const BONDS: bool, const FRICTION: bool>(
     set: InstructionSet,
     model: &Model,
     lanes: &mut ContactLanes,
     rolling: bool,
 ) {
-    #[cfg(target_arch = "x86_64")]
-    match set.width {
-        // SAFETY: a width above the baseline is only made where the processor has its
-        // instructions (`InstructionSet::available`).
-        Width::Avx512 => unsafe {
-            if rolling {
-                kernel_avx512::<BONDS, FRICTION, true>(model, lanes);
-            } else {
-                kernel_avx512::<BONDS, FRICTION, false>(model, lanes);
-            }
-            return;
-        },
-        // SAFETY: as above.
-        Width::Avx2 => unsafe {
-            if rolling {
-                kernel_avx2::<BONDS, FRICTION, true>(model, lanes);
-            } else {
-                kernel_avx2::<BONDS, FRICTION, false>(model, lanes);
-            }
-            return;
-        },
-        Width::Baseline => {}
-    }
     if rolling {
-        kernel::<BONDS, FRICTION, true>(model, lanes);
+        dispatch(set, PairKernel::<BONDS, FRICTION, true> { model, lanes });
     } else {
-        kernel::<BONDS, FRICTION, false>(model, lanes);
+        dispatch(set, PairKernel::<BONDS, FRICTION, false> { model, lanes });
     }
-}
-
-/// A loop over the lanes whose body [`dispatch`] compiles for each build: its `run` must be
-/// `#[inline(always)]`, so that it is compiled into the build's function, with its instructions.
-pub(super) trait LaneLoop {
-    /// The loop.
-    fn run(self);
-}
-
-/// Runs `lanes` compiled for `set`: the wall kernel's builds (`wall_lanes`). (The pair kernel
-/// keeps functions of its own, above, which profiles name.)
-#[inline]
-#[allow(unsafe_code)]
-pub(super) fn dispatch<L: LaneLoop>(set: InstructionSet, lanes: L) {
-    #[cfg(target_arch = "x86_64")]
-    match set.width {
-        // SAFETY: a width above the baseline is only made where the processor has its
-        // instructions (`InstructionSet::available`).
-        Width::Avx512 => unsafe { loop_avx512(lanes) },
-        // SAFETY: as above.
-        Width::Avx2 => unsafe { loop_avx2(lanes) },
-        Width::Baseline => lanes.run(),
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    lanes.run();
-}
-
-/// A [`LaneLoop`] compiled for AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn loop_avx2<L: LaneLoop>(lanes: L) {
-    lanes.run();
-}
-
-/// A [`LaneLoop`] compiled for AVX-512 (F, DQ, VL).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx512vl")]
-fn loop_avx512<L: LaneLoop>(lanes: L) {
-    lanes.run();
 }
 
 /// The step's contact kernel on a fixed set of contacts, for `benches/pair_kernel.rs`: the lanes
