@@ -894,6 +894,26 @@ pub(in crate::forces) mod tests {
         if k % 7 < 4 { 1e-7 } else { 1e-4 }
     }
 
+    /// What a kernel test must have covered: with friction, lanes that slid and lanes that
+    /// stuck; and among its `batches`, some with rolling resistance and some without, so that
+    /// both kernels, with and without the rolling law, ran.
+    pub(in crate::forces) fn assert_both_kinds<const FRICTION: bool>(
+        (sliding, sticking): (usize, usize),
+        rolling: usize,
+        batches: usize,
+    ) {
+        if FRICTION {
+            assert!(
+                sliding > 0 && sticking > 0,
+                "{sliding} sliding, {sticking} sticking"
+            );
+        }
+        assert!(
+            rolling > 0 && rolling < batches,
+            "{rolling} of {batches} batches with rolling resistance"
+        );
+    }
+
     fn bits(out: &ContactOutput) -> Vec<u64> {
         let vectors = [
             out.force_on_a,
@@ -1010,17 +1030,7 @@ pub(in crate::forces) mod tests {
                 switched += usize::from(BONDS && out.state != input.state);
             }
         }
-        if FRICTION {
-            assert!(
-                sliding > 0 && sticking > 0,
-                "{sliding} sliding, {sticking} sticking"
-            );
-        }
-        // Both kernels, with and without the rolling law, ran.
-        assert!(
-            rolling > 0 && rolling < inputs.len() / LANES,
-            "{rolling} batches with rolling resistance"
-        );
+        assert_both_kinds::<FRICTION>((sliding, sticking), rolling, inputs.len() / LANES);
         if BONDS {
             assert!(switched > 0, "no bond formed or broke");
             // Both kernels, with and without the bond law, ran.

@@ -255,7 +255,7 @@ pub(super) fn run<const FRICTION: bool>(set: InstructionSet, dt: f64, lanes: &mu
 mod tests {
     use super::*;
     use crate::contact::hertz;
-    use crate::forces::lanes::tests::{friction_of, held_scale};
+    use crate::forces::lanes::tests::{assert_both_kinds, friction_of, held_scale};
     use crate::study::scenes::{PAPER_E_STAR, PAPER_RADIUS, paper_sphere_mass};
 
     const DT: f64 = 1e-7;
@@ -343,16 +343,7 @@ mod tests {
                 }
             }
         }
-        if FRICTION {
-            assert!(
-                sliding > 0 && sticking > 0,
-                "{sliding} sliding, {sticking} sticking"
-            );
-        }
-        assert!(
-            rolling > 0 && rolling < inputs.len() / LANES,
-            "{rolling} rolling batches"
-        );
+        assert_both_kinds::<FRICTION>((sliding, sticking), rolling, inputs.len() / LANES);
     }
 
     #[test]
