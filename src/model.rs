@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use glam::{DVec2, DVec3};
 
+use crate::bed::contact_history::ImportedRotation;
 use crate::bed::deposition::Deposition;
 use crate::bed::rng::SplitMix64;
 use crate::contact::{BondParams, FrictionParams, NormalParams, bond, hertz, tangential};
@@ -271,6 +272,10 @@ pub struct Model {
     pub domain: Option<Domain>,
     /// Settling under gravity before the run, if the scene has `[deposition]`.
     pub deposition: Option<Deposition>,
+    /// Spins and contact springs read by `[[import]]` (a LIGGGHTS bed's rotational state):
+    /// part of the start, not of the parameters, so [`crate::simulation::Simulation::new`] takes
+    /// them out and gives them to the particles at t = 0.
+    pub imported_rotation: ImportedRotation,
     /// `[a * n + b]`: normal-law parameters of material pair (a, b); symmetric.
     pair_params: Vec<NormalParams>,
     /// `[w * n + a]`: particle (material a) against wall w; never bonded.
@@ -334,7 +339,14 @@ impl Model {
         };
         let mut particles = initial_particles(scene, &materials, &material_index);
         let mut violations = Vec::new();
-        add_imported(scene, &materials, &mut particles, &mut violations);
+        let mut rotation = Default::default();
+        add_imported(
+            scene,
+            &materials,
+            &mut particles,
+            &mut rotation,
+            &mut violations,
+        );
         add_inserted(
             scene,
             &materials,
@@ -421,6 +433,20 @@ impl Model {
         // 10 % of the smallest diameter: LIGGGHTS and LAMMPS use 0.1-0.3 d for granular beds.
         let skin = sim.skin_m.unwrap_or(0.2 * smallest_radius);
         let periodic = periodic_box(scene, &particles, skin)?;
+        let violations = check_imported_contacts(
+            scene,
+            &particles,
+            &walls,
+            periodic.as_ref(),
+            skin,
+            &rotation,
+        );
+        if !violations.is_empty() {
+            return Err(SceneError::Invalid {
+                path: None,
+                violations,
+            });
+        }
         let model = Self {
             title: scene.scene.title.clone(),
             dt: sim.dt_s,
@@ -462,6 +488,7 @@ impl Model {
             }),
             pair_params,
             wall_params,
+            imported_rotation: rotation.0,
         };
         Ok((model, particles))
     }
@@ -664,16 +691,28 @@ fn initial_particles(
     particles
 }
 
+/// Where an imported spring came from, for the check that it is a contact of the particles
+/// ([`check_imported_contacts`]).
+struct SpringSource {
+    /// The `[[import]]` block.
+    block: usize,
+    /// What names it: the line of the pair file, or the particle's file id.
+    what: String,
+}
+
 /// Appends the particles of every `[[import]]` file (rows in file-id order when the file has
-/// ids); problems are added to `violations` under the block's keys.
+/// ids) and gathers what they bring of the rotational state (spins, springs) into `rotation`,
+/// with where each spring came from; problems are added to `violations` under the block's keys.
 fn add_imported(
     scene: &Scene,
     materials: &[Material],
     particles: &mut Particles,
+    rotation: &mut (ImportedRotation, Vec<SpringSource>, Vec<SpringSource>),
     violations: &mut Vec<Violation>,
 ) {
-    use crate::bed::import;
+    use crate::bed::{contact_history, import};
     use crate::scene::ImportFormat;
+    let has_rotation = scene.contact.has_rotation();
     for (k, cfg) in scene.import.iter().enumerate() {
         let path = scene.base_dir.join(&cfg.file);
         let fail = |violations: &mut Vec<Violation>, key: &str, reason: String| {
@@ -686,7 +725,9 @@ fn add_imported(
         let rows = match cfg.format {
             ImportFormat::Csv => import::read_text(&path).and_then(|t| import::parse_csv(&t)),
             ImportFormat::LiggghtsDump => import::open_text(&path)
-                .and_then(|reader| import::read_liggghts_dump(reader, cfg.timestep))
+                .and_then(|reader| {
+                    import::read_liggghts_dump(reader, cfg.timestep, &cfg.wall_history_columns)
+                })
                 .map(|snapshot| snapshot.particles),
             ImportFormat::AmSimH5 => import::read_am_sim_h5(&path, cfg.frame),
         };
@@ -733,12 +774,147 @@ fn add_imported(
                 material: u16::try_from(material).expect("fewer than 65536 materials"),
             });
         }
-        if inits.len() == rows.len() {
-            for init in inits {
-                particles.push(init, materials[usize::from(init.material)].density);
+        if inits.len() != rows.len() {
+            continue;
+        }
+        // am-sim numbers the block's particles on from here, in the order of the rows.
+        let first_id = particles.len() as u64;
+        for init in inits {
+            particles.push(init, materials[usize::from(init.material)].density);
+        }
+        if !has_rotation {
+            // Without friction or rolling resistance the spheres do not turn: a file's spins
+            // have nothing to act on (the springs were refused by the scene's validation).
+            continue;
+        }
+        let (imported, pair_sources, wall_sources) = rotation;
+        for (row, p) in (first_id..).zip(&rows) {
+            if let Some(omega) = p.angular_velocity {
+                imported.angular_velocity.push((row, omega));
+            }
+            for (wall, history) in p.wall_history.iter().enumerate() {
+                if *history != DVec3::ZERO && !cfg.wall_history_columns[wall].is_empty() {
+                    imported.wall_springs.push((row, wall, scale * *history));
+                    wall_sources.push(SpringSource {
+                        block: k,
+                        what: format!(
+                            "the particle of file id {} ({})",
+                            p.id.unwrap_or(row - first_id),
+                            cfg.wall_history_columns[wall]
+                        ),
+                    });
+                }
             }
         }
+        let Some(file) = &cfg.pair_history_file else {
+            continue;
+        };
+        let pair_path = scene.base_dir.join(file);
+        let springs = import::open_text(&pair_path)
+            .and_then(|reader| contact_history::read_pair_history(reader, cfg.timestep));
+        let fail_pairs = |violations: &mut Vec<Violation>, reason: String| {
+            violations.push(Violation {
+                key: format!("import[{k}].pair_history_file"),
+                value: format!("\"{file}\" ({})", pair_path.display()),
+                reason,
+            });
+        };
+        let springs = match springs {
+            Ok(springs) => springs,
+            Err(e) => {
+                fail_pairs(violations, e);
+                continue;
+            }
+        };
+        // The file's ids name the rows of the particle file.
+        let row_of: std::collections::HashMap<u64, u64> = rows
+            .iter()
+            .zip(first_id..)
+            .filter_map(|(p, row)| p.id.map(|id| (id, row)))
+            .collect();
+        for spring in springs {
+            let [Some(first), Some(second)] =
+                [spring.ids.0, spring.ids.1].map(|id| row_of.get(&id))
+            else {
+                fail_pairs(
+                    violations,
+                    format!(
+                        "line {}: the pair ({}, {}) names a particle id that {} does not hold",
+                        spring.line, spring.ids.0, spring.ids.1, cfg.file
+                    ),
+                );
+                break;
+            };
+            // Stored for the lower am-sim id, relative to the higher (`ImportedRotation`).
+            let history = scale * spring.history;
+            let (key, history) = if first < second {
+                ((*first, *second), history)
+            } else {
+                ((*second, *first), -history)
+            };
+            imported.pair_springs.push((key, history));
+            pair_sources.push(SpringSource {
+                block: k,
+                what: format!("line {} of {file}", spring.line),
+            });
+        }
     }
+}
+
+/// Refuses imported springs that are no contact of the imported particles: a pair farther
+/// apart, or a particle farther from its wall, than the skin (the neighbour list and the wall
+/// candidates would never meet them, so the springs could not act).
+fn check_imported_contacts(
+    scene: &Scene,
+    particles: &Particles,
+    walls: &[Wall],
+    periodic: Option<&Periodic>,
+    skin: f64,
+    rotation: &(ImportedRotation, Vec<SpringSource>, Vec<SpringSource>),
+) -> Vec<Violation> {
+    let (imported, pair_sources, wall_sources) = rotation;
+    let mut violations = Vec::new();
+    // Until the first neighbour-list build, index k holds the particle of id k.
+    let index = |id: u64| usize::try_from(id).expect("ids index the particles");
+    for (((a, b), _), source) in imported.pair_springs.iter().zip(pair_sources) {
+        let (a, b) = (index(*a), index(*b));
+        let mut separation = particles.position[b] - particles.position[a];
+        if let Some(periodic) = periodic {
+            separation = periodic.minimum_image(separation);
+        }
+        let gap = separation.length() - particles.radius[a] - particles.radius[b];
+        if gap >= skin {
+            let cfg = &scene.import[source.block];
+            violations.push(Violation {
+                key: format!("import[{}].pair_history_file", source.block),
+                value: format!("\"{}\"", cfg.pair_history_file.as_deref().unwrap_or_default()),
+                reason: format!(
+                    "{}: the two particles' surfaces are {gap:e} m apart, more than the skin ({skin:e} m): not a contact of the particles of {}",
+                    source.what, cfg.file
+                ),
+            });
+            break;
+        }
+    }
+    for ((id, wall, _), source) in imported.wall_springs.iter().zip(wall_sources) {
+        let k = index(*id);
+        let wall_data = &walls[*wall];
+        let gap =
+            (particles.position[k] - wall_data.point).dot(wall_data.normal) - particles.radius[k];
+        if gap >= skin {
+            let cfg = &scene.import[source.block];
+            violations.push(Violation {
+                key: format!("import[{}].wall_history_columns", source.block),
+                value: format!("{:?}", cfg.wall_history_columns),
+                reason: format!(
+                    "{} has a spring against wall {wall} but is {gap:e} m from it, more than the skin ({skin:e} m)",
+                    source.what
+                ),
+            });
+            break;
+        }
+    }
+    violations
 }
 
 /// Appends the spheres of every `[[insert]]`: diameters drawn from the size distribution,

@@ -335,3 +335,177 @@ fn every_shipped_scene_builds_its_particles() {
         }
     }
 }
+
+/// Two touching spheres on a plate as LIGGGHTS dumps them (file ids 7 and 3, with spins and the
+/// plate's springs per atom), and the pairs' springs as its `dump local` of `compute
+/// pair/gran/local id history` writes them; `edit` changes the texts before they are written.
+fn spring_bed(
+    dir: &Path,
+    edit: impl Fn(&str) -> String,
+) -> Result<am_sim::simulation::Simulation, String> {
+    let head = "ITEM: TIMESTEP\n35000\nITEM: NUMBER OF ATOMS\n2\nITEM: BOX BOUNDS pp pp ff\n0 1e-3\n0 1e-3\n0 1e-3\n";
+    std::fs::write(
+        dir.join("bed.dump"),
+        edit(&format!(
+            "{head}ITEM: ATOMS id x y z vx vy vz omegax omegay omegaz radius f_history_zwall[1] f_history_zwall[2] f_history_zwall[3]\n\
+             7 1e-4 1e-4 0.99e-5 0 0 0 1 2 3 1e-5 1e-9 -2e-9 0\n\
+             3 1.199e-4 1e-4 0.99e-5 0 0 0 -4 5 -6 1e-5 0 0 0\n"
+        )),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("pairs.dump"),
+        edit(&format!(
+            "{}ITEM: ENTRIES c_p[1] c_p[2] c_p[3] c_p[4] c_p[5] c_p[6]\n7 3 0 0 3e-9 4e-9\n",
+            head.replace("NUMBER OF ATOMS\n2", "NUMBER OF ENTRIES\n1")
+        )),
+    )
+    .unwrap();
+    let body = edit(
+        "friction_coefficient = 0.5\n\
+         [[import]]\nfile = \"bed.dump\"\nformat = \"liggghts_dump\"\nmaterial = \"steel\"\n\
+         pair_history_file = \"pairs.dump\"\nwall_history_columns = [\"f_history_zwall\"]\n\
+         [[walls]]\npoint_m = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nmaterial = \"glass\"\n",
+    );
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, format!("{HEAD}{body}")).unwrap();
+    let scene = Scene::load(&path).map_err(|e| e.to_string())?;
+    let (model, particles) = Model::try_build(&scene).map_err(|e| e.in_file(&path).to_string())?;
+    Ok(am_sim::simulation::Simulation::new(model, particles))
+}
+
+#[test]
+fn a_liggghts_bed_brings_its_spins_and_springs() {
+    use am_sim::contact::{hertz, tangential};
+    let dir = tempfile::tempdir().unwrap();
+    let sim = spring_bed(dir.path(), str::to_string).unwrap();
+    let state = sim.restart_state().rotation.unwrap();
+    // am-sim numbers the particles in the order of their file ids: file id 3 is particle 0.
+    let index = |id: u64| sim.particles.id.iter().position(|&i| i == id).unwrap();
+    assert_eq!(
+        state.angular_velocity[index(0)],
+        DVec3::new(-4.0, 5.0, -6.0)
+    );
+    assert_eq!(state.angular_velocity[index(1)], DVec3::new(1.0, 2.0, 3.0));
+    // The file's spring is 7's displacement relative to 3; am-sim keeps the lower id's (0, file
+    // id 3) relative to the higher: the same spring, negated.
+    assert_eq!(state.pair_ids, vec![(0, 1)]);
+    let history = DVec3::new(0.0, -3e-9, -4e-9);
+    assert_eq!(state.pair_history, vec![history]);
+    // With its energy ½ k_t |ξ|², k_t = 8 G* √(r* δ) (M.57, M.63): the spheres overlap by
+    // 2e-5 − 1.99e-5 m, the plate by 1e-5 − 0.99e-5 m.
+    let steel_steel = tangential::effective_shear_modulus(2e8, 0.3, 2e8, 0.3);
+    let k_pair = tangential::stiffness(
+        steel_steel,
+        hertz::effective_radius(1e-5, 1e-5),
+        2e-5 - 1.99e-5,
+    );
+    let expected = 0.5 * k_pair * history.length_squared();
+    assert!(
+        (state.pair_spring_energy[0] / expected - 1.0).abs() < 1e-9,
+        "{state:?}"
+    );
+    let stride = 1;
+    let plate = DVec3::new(1e-9, -2e-9, 0.0);
+    assert_eq!(state.wall_history[index(1) * stride], plate);
+    assert_eq!(state.wall_history[index(0) * stride], DVec3::ZERO);
+    let steel_glass = tangential::effective_shear_modulus(2e8, 0.3, 1e8, 0.25);
+    let k_wall = tangential::stiffness(steel_glass, 1e-5, 1e-5 - 0.99e-5);
+    let expected = 0.5 * k_wall * plate.length_squared();
+    assert!((state.wall_spring_energy[index(1)] / expected - 1.0).abs() < 1e-9);
+}
+
+/// A change to the texts of [`spring_bed`].
+type Edit = dyn Fn(&str) -> String;
+
+#[test]
+fn bad_springs_are_errors_naming_key_value_and_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let error = |edit: &Edit| match spring_bed(dir.path(), edit) {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e,
+    };
+    let cases: [(&Edit, &[&str]); 8] = [
+        (
+            &|t| t.replace("friction_coefficient = 0.5\n", ""),
+            &[
+                "import[0].pair_history_file = \"pairs.dump\"",
+                "no tangential contact",
+            ],
+        ),
+        (
+            &|t| {
+                t.replace(
+                    "[\"f_history_zwall\"]",
+                    "[\"f_history_zwall\", \"f_history_top\"]",
+                )
+            },
+            &[
+                "import[0].wall_history_columns",
+                "2 column prefixes for 1 [[walls]]",
+            ],
+        ),
+        (
+            &|t| t.replace("f_history_zwall[2]", "f_history_zwall[5]"),
+            &[
+                "import[0].file",
+                "lacks f_history_zwall[1], f_history_zwall[2] or f_history_zwall[3]",
+            ],
+        ),
+        (
+            &|t| t.replace(" omegay omegaz", " omegay omz"),
+            &["some of omegax, omegay, omegaz but not all three"],
+        ),
+        (
+            &|t| t.replace("7 3 0 0 3e-9", "7 9 0 0 3e-9"),
+            &[
+                "import[0].pair_history_file = \"pairs.dump\"",
+                "line 10: the pair (7, 9) names a particle id that bed.dump does not hold",
+            ],
+        ),
+        (
+            // Particle 3 moved 10 µm away: no contact, and no slot of the neighbour list.
+            &|t| t.replace("3 1.199e-4", "3 1.299e-4"),
+            &[
+                "import[0].pair_history_file = \"pairs.dump\"",
+                "line 10 of pairs.dump: the two particles' surfaces are 9.9",
+                "m apart, more than the skin (2.0000000000000003e-6 m): not a contact of the particles of bed.dump",
+            ],
+        ),
+        (
+            // Particle 7 lifted 50 µm off the plate, its plate spring kept.
+            &|t| {
+                t.replace("7 1e-4 1e-4 0.99e-5", "7 1e-4 1e-4 5.99e-5")
+                    .replace("3 1.199e-4 1e-4 0.99e-5", "3 1.199e-4 1e-4 5.99e-5")
+            },
+            &[
+                "import[0].wall_history_columns",
+                "the particle of file id 7 (f_history_zwall) has a spring against wall 0 but is",
+            ],
+        ),
+        (
+            &|t| t.replace("7 3 0 0 3e-9 4e-9", "7 3 0 0 3e-9"),
+            &[
+                "import[0].pair_history_file",
+                "line 10: 5 values; a contact needs six",
+            ],
+        ),
+    ];
+    for (edit, fragments) in cases {
+        let message = error(edit);
+        for fragment in fragments {
+            assert!(message.contains(fragment), "lacks {fragment:?}:\n{message}");
+        }
+    }
+    // The keys belong to LIGGGHTS dumps only.
+    let csv = build_in(
+        dir.path(),
+        "[[import]]\nfile = \"a.csv\"\nformat = \"csv\"\nmaterial = \"steel\"\npair_history_file = \"p.dump\"\n",
+    )
+    .unwrap_err();
+    assert!(
+        csv.contains("import[0].pair_history_file = \"p.dump\"")
+            && csv.contains("only used with format = \"liggghts_dump\""),
+        "{csv}"
+    );
+}

@@ -20,6 +20,11 @@ pub struct ImportedParticle {
     pub radius: f64,
     /// Material name, if the file gives one (CSV `material` column).
     pub material: Option<String>,
+    /// Angular velocity ω [rad/s], if the file gives one (dump `omegax omegay omegaz`).
+    pub angular_velocity: Option<DVec3>,
+    /// Tangential springs ξ \[m\] against walls, one per requested column prefix of a dump
+    /// (see [`read_liggghts_dump`]); empty otherwise.
+    pub wall_history: Vec<DVec3>,
 }
 
 /// Columns of am-sim's particle CSV: `x_m`, `y_m`, `z_m`, `radius_m` required, the rest optional.
@@ -168,6 +173,8 @@ pub fn parse_csv(text: &str) -> Result<Vec<ImportedParticle>, String> {
             material: material
                 .map(|k| cells[k].to_string())
                 .filter(|m| !m.is_empty()),
+            angular_velocity: None,
+            wall_history: Vec::new(),
         });
     }
     sort_by_id(rows)
@@ -203,14 +210,17 @@ pub struct DumpSnapshot {
 /// # Errors
 /// As [`read_liggghts_dump`].
 pub fn parse_liggghts_dump(text: &str, timestep: Option<u64>) -> Result<DumpSnapshot, String> {
-    read_liggghts_dump(text.as_bytes(), timestep)
+    read_liggghts_dump(text.as_bytes(), timestep, &[])
 }
 
 /// Reads a LIGGGHTS/LAMMPS `dump custom` file line by line and returns the snapshot of
 /// `timestep`, or the last one. The `ITEM: ATOMS` header names the columns: `x y z` (or
-/// unwrapped `xu yu zu`) and `radius` (or `diameter`) are required, `id` and `vx vy vz` optional,
-/// other columns (type, forces, ...) ignored. Values are taken as they are: SI for LIGGGHTS'
-/// `units si`. Only the rows of one snapshot are held at a time, never the file's text (a dump of
+/// unwrapped `xu yu zu`) and `radius` (or `diameter`) are required, `id`, `vx vy vz` and
+/// `omegax omegay omegaz` optional, other columns (type, forces, ...) ignored. For each prefix
+/// `P` of `wall_history` the columns `P[1] P[2] P[3]` are required and read into
+/// [`ImportedParticle::wall_history`] (LIGGGHTS keeps the tangential springs of a `fix ID
+/// wall/gran ... tangential history` per atom, in the fix `history_ID`: `f_history_ID[1]` ...).
+/// Values are taken as they are: SI for LIGGGHTS' `units si`. Only the rows of one snapshot are held at a time, never the file's text (a dump of
 /// 100k spheres is about 10 MB of text, more than the particles it describes).
 ///
 /// # Errors
@@ -219,6 +229,7 @@ pub fn parse_liggghts_dump(text: &str, timestep: Option<u64>) -> Result<DumpSnap
 pub fn read_liggghts_dump(
     reader: impl std::io::BufRead,
     timestep: Option<u64>,
+    wall_history: &[String],
 ) -> Result<DumpSnapshot, String> {
     let mut lines = reader.lines().enumerate().map(|(k, line)| {
         line.map(|l| (k + 1, l))
@@ -267,7 +278,7 @@ pub fn read_liggghts_dump(
                     "line {k}: `ITEM: ATOMS` before `ITEM: NUMBER OF ATOMS`"
                 ))?;
                 let columns = columns.to_string();
-                let rows = read_dump_atoms(&mut next, k, &columns, n, wanted);
+                let rows = read_dump_atoms(&mut next, k, &columns, n, wanted, wall_history);
                 snapshot = Some(rows.and_then(|rows| {
                     Ok(DumpSnapshot {
                         timestep: step,
@@ -294,13 +305,14 @@ pub fn read_liggghts_dump(
 }
 
 /// The `n` rows under the `ITEM: ATOMS` header `columns` (on line `header`), read from `next`;
-/// parsed when `wanted`, otherwise only skipped.
+/// parsed when `wanted`, otherwise only skipped. `wall_history` as in [`read_liggghts_dump`].
 fn read_dump_atoms(
     next: &mut impl FnMut() -> Result<Option<(usize, String)>, String>,
     header: usize,
     columns: &str,
     n: usize,
     wanted: bool,
+    wall_history: &[String],
 ) -> Result<Vec<ImportedParticle>, String> {
     let names: Vec<&str> = columns.split_whitespace().collect();
     let column = |name: &str| names.iter().position(|c| *c == name);
@@ -328,6 +340,27 @@ fn read_dump_atoms(
         }
     };
     let velocity = [column("vx"), column("vy"), column("vz")];
+    let spin = match [column("omegax"), column("omegay"), column("omegaz")] {
+        [Some(x), Some(y), Some(z)] => Some([x, y, z]),
+        [None, None, None] => None,
+        _ => {
+            return Err(format!(
+                "line {header}: the ATOMS header [{columns}] has some of omegax, omegay, omegaz but not all three"
+            ));
+        }
+    };
+    let walls = wall_history
+        .iter()
+        .map(|prefix| {
+            let [x, y, z] = [1, 2, 3].map(|c| column(&format!("{prefix}[{c}]")));
+            match (x, y, z) {
+                (Some(x), Some(y), Some(z)) => Ok([x, y, z]),
+                _ => Err(format!(
+                    "line {header}: the ATOMS header [{columns}] lacks {prefix}[1], {prefix}[2] or {prefix}[3] (the wall springs asked for)"
+                )),
+            }
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let id = column("id");
     let mut rows = Vec::with_capacity(if wanted { n } else { 0 });
     for read in 0..n {
@@ -364,6 +397,13 @@ fn read_dump_atoms(
             ),
             radius: check_radius(if halve { 0.5 * r } else { r }, line, names[radius])?,
             material: None,
+            angular_velocity: spin
+                .map(|[x, y, z]| Ok::<_, String>(DVec3::new(value(x)?, value(y)?, value(z)?)))
+                .transpose()?,
+            wall_history: walls
+                .iter()
+                .map(|&[x, y, z]| Ok(DVec3::new(value(x)?, value(y)?, value(z)?)))
+                .collect::<Result<_, String>>()?,
         });
     }
     Ok(rows)
@@ -384,6 +424,8 @@ pub fn read_am_sim_h5(path: &Path, frame: Option<usize>) -> Result<Vec<ImportedP
             velocity: f.velocity[k],
             radius: f.radius[k],
             material: None,
+            angular_velocity: None,
+            wall_history: Vec::new(),
         })
         .collect();
     sort_by_id(rows)

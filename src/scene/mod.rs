@@ -410,6 +410,16 @@ pub struct ImportConfig {
     /// Added to every position after scaling \[m\]; default none.
     #[serde(default)]
     pub shift_m: [f64; 3],
+    /// `liggghts_dump`: the tangential springs of the particles' contacts, a LIGGGHTS `dump
+    /// local` of `compute ID all pair/gran/local id history` (`bed::contact_history`), relative
+    /// to the scene file's folder; needs tangential contact (`contact.friction_coefficient`).
+    pub pair_history_file: Option<String>,
+    /// `liggghts_dump`: for each `[[walls]]` entry in order, the prefix `P` of the dump's columns
+    /// `P[1] P[2] P[3]` holding the particles' tangential springs against that wall \[m\] (LIGGGHTS
+    /// keeps those of `fix ID wall/gran ... tangential history` in `f_history_ID[1..3]`), or ""
+    /// for a wall without; needs tangential contact.
+    #[serde(default)]
+    pub wall_history_columns: Vec<String>,
 }
 
 /// `[deposition]`: before the run, the particles fall under gravity with the laser off until

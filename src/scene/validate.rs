@@ -983,6 +983,49 @@ fn validate_import(c: &mut Checker, scene: &Scene, k: usize, import: &ImportConf
             );
         }
     }
+    // The springs of a bed's contacts: only LIGGGHTS writes them, and only a scene with
+    // tangential contact has springs to carry them.
+    let springs = [
+        (
+            "pair_history_file",
+            import
+                .pair_history_file
+                .as_ref()
+                .map(|f| format!("\"{f}\"")),
+        ),
+        (
+            "wall_history_columns",
+            (!import.wall_history_columns.is_empty())
+                .then(|| format!("{:?}", import.wall_history_columns)),
+        ),
+    ];
+    for (field, value) in springs {
+        let Some(value) = value else { continue };
+        if import.format != ImportFormat::LiggghtsDump {
+            c.fail(
+                key(field),
+                &value,
+                "only used with format = \"liggghts_dump\"",
+            );
+        } else if scene.contact.friction_coefficient.is_none() {
+            c.fail(
+                key(field),
+                &value,
+                "the scene has no tangential contact (contact.friction_coefficient), so no spring to carry these histories",
+            );
+        }
+    }
+    if import.wall_history_columns.len() > scene.walls.len() {
+        c.fail(
+            key("wall_history_columns"),
+            format!("{:?}", import.wall_history_columns),
+            format!(
+                "{} column prefixes for {} [[walls]]: give one per wall, in order (\"\" for a wall without springs)",
+                import.wall_history_columns.len(),
+                scene.walls.len()
+            ),
+        );
+    }
     match &import.material {
         Some(name) => c.material(scene, &key("material"), name),
         None if import.format != ImportFormat::Csv => c.fail(

@@ -191,6 +191,8 @@ impl Simulation {
             .map(|_| Rotation::new(particles.len(), model.walls.len()));
         let mut sim = Self::assemble(model, particles, thermal, rotation);
         sim.rebuild_neighbors();
+        let imported = std::mem::take(&mut sim.model.imported_rotation);
+        sim.set_imported_rotation(&imported, true);
         if sim.model.deposition.is_none() {
             // With a deposition the run starts from the settled bed (`restart_clock`).
             sim.apply_initial_regions();
@@ -198,6 +200,9 @@ impl Simulation {
         sim.force_summary = sim.compute_forces(false);
         sim.non_finite_force = sim.particles.force.iter().position(|f| !f.is_finite());
         sim.clear_tangential_history();
+        // The springs the particles came with are the run's start; the set-up evaluation (whose
+        // forces include them) advanced them by v_t dt, like those of a fresh start.
+        sim.set_imported_rotation(&imported, false);
         // The t = 0 evaluation did no work over time; the energy the run starts with already
         // counts any bond it formed.
         sim.particles.dissipated.fill(0.0);
@@ -545,6 +550,91 @@ impl Simulation {
             heat,
             cleared,
         )
+    }
+
+    /// Gives the particles the spins (with `spins`) and their contacts the tangential springs an
+    /// import brought ([`crate::bed::contact_history::ImportedRotation`]), by id. Each spring gets
+    /// its energy `½ k_t |ξ|²` (M.63) at the current overlap, `k_t = 8 G* √(r* δ)` (M.57), so that
+    /// the run's energy balance starts from it. Scene validation admits springs only with
+    /// friction, and only for pairs and walls within the skin, which the list and the wall
+    /// candidates hold.
+    fn set_imported_rotation(
+        &mut self,
+        imported: &crate::bed::contact_history::ImportedRotation,
+        spins: bool,
+    ) {
+        let (Some(rotation), Some(friction)) = (&mut self.rotation, &self.model.friction) else {
+            return;
+        };
+        if imported.is_empty() {
+            return;
+        }
+        let p = &self.particles;
+        let index_of: std::collections::HashMap<u64, usize> =
+            p.id.iter().enumerate().map(|(k, id)| (*id, k)).collect();
+        if spins {
+            for (id, omega) in &imported.angular_velocity {
+                rotation.angular_velocity[index_of[id]] = *omega;
+            }
+        }
+        let springs: std::collections::HashMap<(u64, u64), glam::DVec3> =
+            imported.pair_springs.iter().copied().collect();
+        let periodic = self.model.periodic.as_ref();
+        let pairs: Vec<(usize, usize, TangentialSpring)> = self
+            .neighbors
+            .pairs()
+            .filter_map(|(slot, a, b)| {
+                let (ia, ib) = (p.id[a], p.id[b]);
+                let history = springs.get(&(ia.min(ib), ia.max(ib)))?;
+                // Stored as the lower id's displacement; the list's owner is `a`.
+                let history = if ia < ib { *history } else { -*history };
+                let (_, overlap) = forces::pair_geometry(periodic, p, a, b);
+                let stiffness = crate::contact::tangential::stiffness(
+                    friction
+                        .pair(p.material[a], p.material[b])
+                        .effective_shear_modulus,
+                    hertz::effective_radius(p.radius[a], p.radius[b]),
+                    overlap,
+                );
+                let spring_energy = crate::contact::tangential::spring_energy(stiffness, history);
+                Some((
+                    slot,
+                    a,
+                    TangentialSpring {
+                        history,
+                        spring_energy,
+                    },
+                ))
+            })
+            .collect();
+        debug_assert_eq!(
+            pairs.len(),
+            springs.len(),
+            "validated: every pair is listed"
+        );
+        for (slot, owner, spring) in pairs {
+            self.tangential.set(&self.neighbors, slot, owner, spring);
+        }
+        let walls = imported.wall_springs.iter().map(|&(id, w, history)| {
+            let k = index_of[&id];
+            let wall = &self.model.walls[w];
+            let overlap = p.radius[k] - (p.position[k] - wall.point).dot(wall.normal);
+            let stiffness = crate::contact::tangential::stiffness(
+                friction.wall(w, p.material[k]).effective_shear_modulus,
+                p.radius[k],
+                overlap,
+            );
+            let spring_energy = crate::contact::tangential::spring_energy(stiffness, history);
+            (
+                k,
+                w,
+                TangentialSpring {
+                    history,
+                    spring_energy,
+                },
+            )
+        });
+        rotation.wall_springs = crate::wall_history::WallSprings::from_entries(p.len(), walls);
     }
 
     /// The set-up evaluation at t = 0 computed the tangential forces with a history advanced by
