@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Physics parity with LIGGGHTS 3.8 on the 19.2k benchmark bed: both programs start from the same
-# dump (scenes/data/liggghts_start_20k.dump.gz, so neither has tangential histories: a LIGGGHTS
-# restart would carry them, a dump cannot), run 500 + 5000 steps, and the script prints, for each,
+# state (LIGGGHTS from its settled restart, am-sim from scenes/data/liggghts_start_20k*.dump.gz,
+# which benches/liggghts_export.sh wrote from that restart: positions, velocities, spins and the
+# tangential springs of pairs and plate), run 500 + 5000 steps, and the script prints, for each,
 # the particle-particle coordination with overlap > 0, the wall contacts per particle and the
 # largest overlap at the end (LIGGGHTS' numbers by shared/bench/liggghts/coord.py, which needs
 # numpy and scipy). Then the heat variant (in.bench -var heat 1 against
@@ -19,16 +20,15 @@ AM_SIM=$(realpath target/release/am-sim)
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 
-# The dump as a LAMMPS data file, for LIGGGHTS.
-python3 benches/dump_to_data.py scenes/data/liggghts_start_20k.dump.gz "$WORK/start_20k.data"
-sed -e 's|read_restart   settled_${tag}.restart|read_data start_${tag}.data|' "$BENCH"/in.bench > "$WORK"/in.parity
+gunzip -c "$BENCH"/settled_20k.restart.gz > "$WORK"/settled_20k.restart
+cp "$BENCH"/in.bench "$WORK"/in.parity
 (cd "$WORK" && mpirun --allow-run-as-root -np 2 liggghts -in in.parity -var tag 20k -var heat 0 \
     -var nsteps 5000 -var dumpx 1 -screen none -log parity.log)
-echo "LIGGGHTS, from the dump:"
+echo "LIGGGHTS, from its restart:"
 python3 "$BENCH"/coord.py "$WORK"/end_20k_heat0.dump
 
 sed "s|file = \"data/|file = \"$PWD/scenes/data/|" scenes/liggghts_bed_20k.toml > "$WORK"/am_sim.toml
-echo "am-sim, from the dump:"
+echo "am-sim, from the same state:"
 (cd "$WORK" && "$AM_SIM" am_sim.toml --quiet) | awk '
     /contacts:/ { pp = $2; wall = $4 }
     /now: largest overlap/ { overlap = $4 }

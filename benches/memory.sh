@@ -61,14 +61,17 @@ material = "steel"
 x_m = [0.0, 1.07e-2]
 y_m = [0.0, 1.07e-2]
 TOML
-# The packed bed: the 97.2k bed's dump tiled 4 x 3 over its 2.97 mm box, ids offset per copy.
+# The packed bed: the 97.2k bed's dump tiled 4 x 3 over its 2.97 mm box, ids offset per copy
+# (positions, velocities and radii only: the copies start without spins and springs).
 python3 - scenes/data/liggghts_start_100k.dump.gz "$WORK/bed_1m_packed.dump" <<'PYTHON'
 import gzip, sys
 BOX, TILES = 2.97e-3, (4, 3)
 with gzip.open(sys.argv[1], "rt") as dump:
     lines = dump.read().splitlines()
-start = next(i for i, line in enumerate(lines) if line.startswith("ITEM: ATOMS")) + 1
-atoms = [line.split() for line in lines[start:] if line.strip()]
+header = next(i for i, line in enumerate(lines) if line.startswith("ITEM: ATOMS"))
+names = lines[header].split()[2:]
+column = {name: names.index(name) for name in ("id", "x", "y", "z", "vx", "vy", "vz", "radius")}
+atoms = [line.split() for line in lines[header + 1:] if line.strip()]
 with open(sys.argv[2], "w") as out:
     out.write(f"ITEM: TIMESTEP\n0\nITEM: NUMBER OF ATOMS\n{len(atoms) * TILES[0] * TILES[1]}\n")
     out.write(f"ITEM: BOX BOUNDS pp pp ff\n0 {BOX * TILES[0]!r}\n0 {BOX * TILES[1]!r}\n0 0.001\n")
@@ -77,11 +80,12 @@ with open(sys.argv[2], "w") as out:
         for j in range(TILES[1]):
             offset = (i * TILES[1] + j) * len(atoms)
             for a in atoms:
-                x, y = float(a[1]) + i * BOX, float(a[2]) + j * BOX
-                out.write(f"{int(a[0]) + offset} {x!r} {y!r} {' '.join(a[3:8])}\n")
+                x, y = float(a[column["x"]]) + i * BOX, float(a[column["y"]]) + j * BOX
+                rest = " ".join(a[column[name]] for name in ("z", "vx", "vy", "vz", "radius"))
+                out.write(f"{int(a[column['id']]) + offset} {x!r} {y!r} {rest}\n")
 PYTHON
 sed -e 's|^file = .*|file = "bed_1m_packed.dump"|' -e 's|^x_m = .*|x_m = [0.0, 1.188e-2]|' \
-    -e 's|^y_m = .*|y_m = [0.0, 8.91e-3]|' \
+    -e 's|^y_m = .*|y_m = [0.0, 8.91e-3]|' -e '/^pair_history_file/d' -e '/^wall_history_columns/d' \
     -e 's|^title = .*|title = "1,166,400 packed spheres: memory per particle"|' \
     scenes/liggghts_bed_100k.toml > "$WORK/bed_1m_packed.toml"
 for scene in scenes/liggghts_bed_20k.toml scenes/liggghts_bed_100k.toml "$WORK/bed_1m.toml" \
