@@ -692,12 +692,13 @@ fn initial_particles(
 }
 
 /// Where an imported spring came from, for the check that it is a contact of the particles
-/// ([`check_imported_contacts`]).
+/// ([`check_imported_contacts`]): 16 bytes, not a message, because a bed brings a spring per
+/// contact and this list lives at the import's peak of memory.
 struct SpringSource {
     /// The `[[import]]` block.
     block: usize,
     /// What names it: the line of the pair file, or the particle's file id.
-    what: String,
+    at: u64,
 }
 
 /// Appends the particles of every `[[import]]` file (rows in file-id order when the file has
@@ -797,11 +798,7 @@ fn add_imported(
                     imported.wall_springs.push((row, wall, scale * *history));
                     wall_sources.push(SpringSource {
                         block: k,
-                        what: format!(
-                            "the particle of file id {} ({})",
-                            p.id.unwrap_or(row - first_id),
-                            cfg.wall_history_columns[wall]
-                        ),
+                        at: p.id.unwrap_or(row - first_id),
                     });
                 }
             }
@@ -809,6 +806,10 @@ fn add_imported(
         let Some(file) = &cfg.pair_history_file else {
             continue;
         };
+        // The pair file names particles by their file ids; the rows are sorted by them (and
+        // unique) when every row has one. Only the ids are kept while the pairs are read.
+        let file_ids: Option<Vec<u64>> = rows.iter().map(|p| p.id).collect();
+        drop(rows);
         let pair_path = scene.base_dir.join(file);
         let springs = import::open_text(&pair_path)
             .and_then(|reader| contact_history::read_pair_history(reader, cfg.timestep));
@@ -826,16 +827,24 @@ fn add_imported(
                 continue;
             }
         };
-        // The file's ids name the rows of the particle file.
-        let row_of: std::collections::HashMap<u64, u64> = rows
-            .iter()
-            .zip(first_id..)
-            .filter_map(|(p, row)| p.id.map(|id| (id, row)))
-            .collect();
+        let Some(file_ids) = file_ids else {
+            fail_pairs(
+                violations,
+                format!(
+                    "{} has no `id` column, so its particles cannot be named by the pairs",
+                    cfg.file
+                ),
+            );
+            continue;
+        };
+        let row_of = |id: u64| {
+            file_ids
+                .binary_search(&id)
+                .ok()
+                .map(|row| first_id + row as u64)
+        };
         for spring in springs {
-            let [Some(first), Some(second)] =
-                [spring.ids.0, spring.ids.1].map(|id| row_of.get(&id))
-            else {
+            let [Some(first), Some(second)] = [spring.ids.0, spring.ids.1].map(row_of) else {
                 fail_pairs(
                     violations,
                     format!(
@@ -848,14 +857,14 @@ fn add_imported(
             // Stored for the lower am-sim id, relative to the higher (`ImportedRotation`).
             let history = scale * spring.history;
             let (key, history) = if first < second {
-                ((*first, *second), history)
+                ((first, second), history)
             } else {
-                ((*second, *first), -history)
+                ((second, first), -history)
             };
             imported.pair_springs.push((key, history));
             pair_sources.push(SpringSource {
                 block: k,
-                what: format!("line {} of {file}", spring.line),
+                at: spring.line as u64,
             });
         }
     }
@@ -889,8 +898,10 @@ fn check_imported_contacts(
                 key: format!("import[{}].pair_history_file", source.block),
                 value: format!("\"{}\"", cfg.pair_history_file.as_deref().unwrap_or_default()),
                 reason: format!(
-                    "{}: the two particles' surfaces are {gap:e} m apart, more than the skin ({skin:e} m): not a contact of the particles of {}",
-                    source.what, cfg.file
+                    "line {} of {}: the two particles' surfaces are {gap:e} m apart, more than the skin ({skin:e} m): not a contact of the particles of {}",
+                    source.at,
+                    cfg.pair_history_file.as_deref().unwrap_or_default(),
+                    cfg.file
                 ),
             });
             break;
@@ -907,8 +918,8 @@ fn check_imported_contacts(
                 key: format!("import[{}].wall_history_columns", source.block),
                 value: format!("{:?}", cfg.wall_history_columns),
                 reason: format!(
-                    "{} has a spring against wall {wall} but is {gap:e} m from it, more than the skin ({skin:e} m)",
-                    source.what
+                    "the particle of file id {} ({}) has a spring against wall {wall} but is {gap:e} m from it, more than the skin ({skin:e} m)",
+                    source.at, cfg.wall_history_columns[*wall]
                 ),
             });
             break;

@@ -425,7 +425,7 @@ fn bad_springs_are_errors_naming_key_value_and_reason() {
         Ok(_) => panic!("accepted"),
         Err(e) => e,
     };
-    let cases: [(&Edit, &[&str]); 8] = [
+    let cases: [(&Edit, &[&str]); 9] = [
         (
             &|t| t.replace("friction_coefficient = 0.5\n", ""),
             &[
@@ -488,6 +488,13 @@ fn bad_springs_are_errors_naming_key_value_and_reason() {
             &[
                 "import[0].pair_history_file",
                 "line 10: 5 values; a contact needs six",
+            ],
+        ),
+        (
+            &|t| t.replace("ATOMS id x", "ATOMS type x"),
+            &[
+                "import[0].pair_history_file",
+                "bed.dump has no `id` column, so its particles cannot be named by the pairs",
             ],
         ),
     ];

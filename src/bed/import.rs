@@ -23,7 +23,7 @@ pub struct ImportedParticle {
     /// Angular velocity ω [rad/s], if the file gives one (dump `omegax omegay omegaz`).
     pub angular_velocity: Option<DVec3>,
     /// Tangential springs ξ \[m\] against walls, one per requested column prefix of a dump
-    /// (see [`read_liggghts_dump`]); empty otherwise.
+    /// (see [`read_liggghts_dump`]); empty otherwise, and when all of them are zero.
     pub wall_history: Vec<DVec3>,
 }
 
@@ -400,10 +400,18 @@ fn read_dump_atoms(
             angular_velocity: spin
                 .map(|[x, y, z]| Ok::<_, String>(DVec3::new(value(x)?, value(y)?, value(z)?)))
                 .transpose()?,
-            wall_history: walls
-                .iter()
-                .map(|&[x, y, z]| Ok(DVec3::new(value(x)?, value(y)?, value(z)?)))
-                .collect::<Result<_, String>>()?,
+            wall_history: {
+                let springs = walls
+                    .iter()
+                    .map(|&[x, y, z]| Ok(DVec3::new(value(x)?, value(y)?, value(z)?)))
+                    .collect::<Result<Vec<_>, String>>()?;
+                // Most particles touch no wall: no allocation for them.
+                if springs.iter().all(|s| *s == DVec3::ZERO) {
+                    Vec::new()
+                } else {
+                    springs
+                }
+            },
         });
     }
     Ok(rows)

@@ -21,7 +21,8 @@
 
 use std::ops::Range;
 
-use crate::contact::tangential::TangentialSpring;
+use crate::bed::contact_history::ImportedRotation;
+use crate::contact::tangential::{self, TangentialSpring};
 use crate::contact::{BondState, hertz, rolling};
 use crate::forces::{self, ForceSummary};
 use crate::integrate;
@@ -191,8 +192,11 @@ impl Simulation {
             .map(|_| Rotation::new(particles.len(), model.walls.len()));
         let mut sim = Self::assemble(model, particles, thermal, rotation);
         sim.rebuild_neighbors();
-        let imported = std::mem::take(&mut sim.model.imported_rotation);
+        let mut imported = std::mem::take(&mut sim.model.imported_rotation);
+        // Sorted by key: each listed pair finds its spring by a binary search.
+        imported.pair_springs.sort_unstable_by_key(|s| s.0);
         sim.set_imported_rotation(&imported, true);
+        imported.angular_velocity = Vec::new();
         if sim.model.deposition.is_none() {
             // With a deposition the run starts from the settled bed (`restart_clock`).
             sim.apply_initial_regions();
@@ -558,11 +562,7 @@ impl Simulation {
     /// the run's energy balance starts from it. Scene validation admits springs only with
     /// friction, and only for pairs and walls within the skin, which the list and the wall
     /// candidates hold.
-    fn set_imported_rotation(
-        &mut self,
-        imported: &crate::bed::contact_history::ImportedRotation,
-        spins: bool,
-    ) {
+    fn set_imported_rotation(&mut self, imported: &ImportedRotation, spins: bool) {
         let (Some(rotation), Some(friction)) = (&mut self.rotation, &self.model.friction) else {
             return;
         };
@@ -570,69 +570,59 @@ impl Simulation {
             return;
         }
         let p = &self.particles;
-        let index_of: std::collections::HashMap<u64, usize> =
-            p.id.iter().enumerate().map(|(k, id)| (*id, k)).collect();
+        // Ids are 0..n until particles leave; a list, not a map, at this peak of memory.
+        let mut index_of = vec![u32::MAX; p.len()];
+        for (k, &id) in p.id.iter().enumerate() {
+            index_of[usize::try_from(id).expect("ids index the particles")] =
+                u32::try_from(k).expect("fewer than 2^32 particles");
+        }
+        let index = |id: u64| index_of[usize::try_from(id).expect("an id of the bed")] as usize;
         if spins {
-            for (id, omega) in &imported.angular_velocity {
-                rotation.angular_velocity[index_of[id]] = *omega;
+            for &(id, omega) in &imported.angular_velocity {
+                rotation.angular_velocity[index(id)] = omega;
             }
         }
-        let springs: std::collections::HashMap<(u64, u64), glam::DVec3> =
-            imported.pair_springs.iter().copied().collect();
+        let springs = &imported.pair_springs;
         let periodic = self.model.periodic.as_ref();
-        let pairs: Vec<(usize, usize, TangentialSpring)> = self
-            .neighbors
-            .pairs()
-            .filter_map(|(slot, a, b)| {
-                let (ia, ib) = (p.id[a], p.id[b]);
-                let history = springs.get(&(ia.min(ib), ia.max(ib)))?;
-                // Stored as the lower id's displacement; the list's owner is `a`.
-                let history = if ia < ib { *history } else { -*history };
-                let (_, overlap) = forces::pair_geometry(periodic, p, a, b);
-                let stiffness = crate::contact::tangential::stiffness(
-                    friction
-                        .pair(p.material[a], p.material[b])
-                        .effective_shear_modulus,
-                    hertz::effective_radius(p.radius[a], p.radius[b]),
-                    overlap,
-                );
-                let spring_energy = crate::contact::tangential::spring_energy(stiffness, history);
-                Some((
-                    slot,
-                    a,
-                    TangentialSpring {
-                        history,
-                        spring_energy,
-                    },
-                ))
-            })
-            .collect();
-        debug_assert_eq!(
-            pairs.len(),
-            springs.len(),
-            "validated: every pair is listed"
-        );
-        for (slot, owner, spring) in pairs {
-            self.tangential.set(&self.neighbors, slot, owner, spring);
+        let mut set = 0;
+        for (slot, a, b) in self.neighbors.pairs() {
+            let (ia, ib) = (p.id[a], p.id[b]);
+            let Ok(found) = springs.binary_search_by_key(&(ia.min(ib), ia.max(ib)), |s| s.0) else {
+                continue;
+            };
+            // Stored as the lower id's displacement; the list's owner is `a`.
+            let history = springs[found].1;
+            let history = if ia < ib { history } else { -history };
+            let (_, overlap) = forces::pair_geometry(periodic, p, a, b);
+            let stiffness = tangential::stiffness(
+                friction
+                    .pair(p.material[a], p.material[b])
+                    .effective_shear_modulus,
+                hertz::effective_radius(p.radius[a], p.radius[b]),
+                overlap,
+            );
+            let spring = TangentialSpring {
+                history,
+                spring_energy: tangential::spring_energy(stiffness, history),
+            };
+            self.tangential.set(&self.neighbors, slot, a, spring);
+            set += 1;
         }
+        debug_assert_eq!(set, springs.len(), "validated: every pair is listed");
         let walls = imported.wall_springs.iter().map(|&(id, w, history)| {
-            let k = index_of[&id];
+            let k = index(id);
             let wall = &self.model.walls[w];
             let overlap = p.radius[k] - (p.position[k] - wall.point).dot(wall.normal);
-            let stiffness = crate::contact::tangential::stiffness(
+            let stiffness = tangential::stiffness(
                 friction.wall(w, p.material[k]).effective_shear_modulus,
                 p.radius[k],
                 overlap,
             );
-            let spring_energy = crate::contact::tangential::spring_energy(stiffness, history);
-            (
-                k,
-                w,
-                TangentialSpring {
-                    history,
-                    spring_energy,
-                },
-            )
+            let spring = TangentialSpring {
+                history,
+                spring_energy: tangential::spring_energy(stiffness, history),
+            };
+            (k, w, spring)
         });
         rotation.wall_springs = crate::wall_history::WallSprings::from_entries(p.len(), walls);
     }
