@@ -17,16 +17,19 @@ mod common;
 
 use std::io::Read;
 
-/// LIGGGHTS' temperatures [K], indexed like am-sim's particles (ids in file order).
-fn liggghts_temperatures() -> Vec<f64> {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/reference/liggghts_heat_2000_steps.txt.gz"
-    );
+/// The text of a gzipped reference file of tests/reference.
+fn gzipped_reference(name: &str) -> String {
+    let path = format!("{}/tests/reference/{name}", env!("CARGO_MANIFEST_DIR"));
     let mut text = String::new();
     flate2::read::GzDecoder::new(std::fs::File::open(path).expect("reference file"))
         .read_to_string(&mut text)
         .expect("gzip text");
+    text
+}
+
+/// LIGGGHTS' temperatures [K], indexed like am-sim's particles (ids in file order).
+fn liggghts_temperatures() -> Vec<f64> {
+    let text = gzipped_reference("liggghts_heat_2000_steps.txt.gz");
     let mut rows: Vec<(u64, f64)> = text
         .lines()
         .filter(|l| !l.starts_with('#'))
@@ -89,15 +92,8 @@ fn the_bed_keeps_as_many_contacts_as_in_liggghts() {
 
 /// LIGGGHTS' velocities and spins after one step, by LIGGGHTS id (every fourth particle).
 fn liggghts_one_step() -> Vec<(u64, [f64; 6])> {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/reference/liggghts_one_step.txt.gz"
-    );
-    let mut text = String::new();
-    flate2::read::GzDecoder::new(std::fs::File::open(path).expect("reference file"))
-        .read_to_string(&mut text)
-        .expect("gzip text");
-    text.lines()
+    gzipped_reference("liggghts_one_step.txt.gz")
+        .lines()
         .filter(|l| !l.starts_with('#'))
         .map(|l| {
             let mut fields = l.split_whitespace();

@@ -96,32 +96,26 @@ pub fn read_pair_history(
         let number = k + 1;
         let line = line.map_err(|e| format!("line {number}: cannot read: {e}"))?;
         let item = line.trim();
-        if item.starts_with("ITEM: TIMESTEP") {
+        // The integer on the line after an item's header.
+        let mut next_integer = |what: &str| {
             let value = lines
                 .next()
                 .map(|(_, l)| l.unwrap_or_default())
                 .unwrap_or_default();
             let value = value.trim();
-            step = Some(value.parse().map_err(|_| {
-                format!(
-                    "line {}: timestep \"{value}\" is not an integer",
-                    number + 1
-                )
-            })?);
+            value
+                .parse::<u64>()
+                .map_err(|_| format!("line {}: {what} \"{value}\" is not an integer", number + 1))
+        };
+        if item.starts_with("ITEM: TIMESTEP") {
+            step = Some(next_integer("timestep")?);
             timesteps.extend(step);
             count = None;
         } else if item.starts_with("ITEM: NUMBER OF ENTRIES") {
-            let value = lines
-                .next()
-                .map(|(_, l)| l.unwrap_or_default())
-                .unwrap_or_default();
-            let value = value.trim();
-            count = Some(value.parse().map_err(|_| {
-                format!(
-                    "line {}: number of entries \"{value}\" is not an integer",
-                    number + 1
-                )
-            })?);
+            count = Some(
+                usize::try_from(next_integer("number of entries")?)
+                    .map_err(|_| format!("line {}: too many entries", number + 1))?,
+            );
         } else if item.starts_with("ITEM: ENTRIES") {
             let (Some(this_step), Some(n)) = (step, count) else {
                 return Err(format!(
