@@ -103,16 +103,68 @@ pub struct FrictionCheck {
     pub time_factor: f64,
     /// Shortest Hertz contact time times `time_factor` \[s\].
     pub tangential_time: f64,
+    /// The rotational state the run starts from (a bed imported from LIGGGHTS brings spins and
+    /// springs; a fresh start has none).
+    pub start: RotationStart,
+}
+
+/// Spins and tangential springs at t = 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RotationStart {
+    /// Spheres with a non-zero angular velocity.
+    pub spinning: usize,
+    /// Largest |ω| \[rad/s\].
+    pub max_spin: f64,
+    /// Pairs holding a tangential spring.
+    pub pair_springs: usize,
+    /// Particle–wall contacts holding one.
+    pub wall_springs: usize,
+    /// The springs' energy ½ k_t |ξ|² \[J\] (M.63).
+    pub spring_energy: f64,
+}
+
+impl RotationStart {
+    fn of(sim: &Simulation) -> Self {
+        let spins = sim
+            .rotation
+            .as_ref()
+            .map_or(&[][..], |r| r.angular_velocity.as_slice());
+        let (pair_springs, wall_springs, spring_energy) = sim.held_springs();
+        Self {
+            spinning: spins.iter().filter(|w| **w != glam::DVec3::ZERO).count(),
+            max_spin: spins.iter().map(|w| w.length()).fold(0.0, f64::max),
+            pair_springs,
+            wall_springs,
+            spring_energy,
+        }
+    }
+
+    /// True when the run starts at rest, without springs.
+    #[must_use]
+    pub fn is_at_rest(&self) -> bool {
+        self.spinning == 0 && self.pair_springs == 0 && self.wall_springs == 0
+    }
+}
+
+impl fmt::Display for RotationStart {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "the start holds {} spinning spheres (|ω| ≤ {:.4e} rad/s) and {} pair and {} wall tangential springs ({:.4e} J)",
+            self.spinning, self.max_spin, self.pair_springs, self.wall_springs, self.spring_energy
+        )
+    }
 }
 
 /// k_t/k_n and the tangential time scale (M.64); lowers `recommended` and warns when dt resolves
 /// the tangential oscillation too coarsely.
 fn friction_check(
-    model: &Model,
+    sim: &Simulation,
     pairs: &[PairRow],
     recommended: &mut f64,
     warnings: &mut Vec<String>,
 ) -> Option<FrictionCheck> {
+    let model = &sim.model;
     let friction = model.friction.as_ref()?;
     let n = u16::try_from(model.materials.len()).unwrap_or(u16::MAX);
     // (G*, E*) of every material pair and material–wall pair.
@@ -157,6 +209,7 @@ fn friction_check(
         stiffness_ratio: (lo, hi),
         time_factor,
         tangential_time,
+        start: RotationStart::of(sim),
     })
 }
 
@@ -341,7 +394,7 @@ pub fn report(sim: &Simulation) -> CheckReport {
     // With friction a sticking contact also oscillates tangentially, against the reduced mass
     // 2/7 m* (rotation included) and k_t = (4G*/E*) k_n: ω_t = ω_n / time_factor (M.64), so
     // the limit shrinks by that factor where it is below 1 (0.59 for ν = 0.3).
-    let friction = friction_check(model, &pairs, &mut recommended, &mut warnings);
+    let friction = friction_check(sim, &pairs, &mut recommended, &mut warnings);
     if let Some(f) = &friction {
         if f.time_factor < 1.0 {
             stability_limit.0 *= f.time_factor;
@@ -589,6 +642,9 @@ impl fmt::Display for CheckReport {
                 t.tangential_time,
                 t.tangential_time / self.dt
             )?;
+            if !t.start.is_at_rest() {
+                writeln!(f, "{}", t.start)?;
+            }
         }
         if let Some(reason) = self.instability() {
             writeln!(f, "error: {reason}")?;

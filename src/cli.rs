@@ -248,6 +248,9 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
     for w in report.warnings.iter().chain(&instability) {
         say!("warning: {w}");
     }
+    if let Some(start) = report.friction.map(|f| f.start).filter(|s| !s.is_at_rest()) {
+        say!("{start}");
+    }
 
     // [deposition] (not on --restart: the saved frames are already of the settled bed).
     if let (Some(settings), None) = (sim.model.deposition, &args.restart) {

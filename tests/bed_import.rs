@@ -413,6 +413,16 @@ fn a_liggghts_bed_brings_its_spins_and_springs() {
     let k_wall = tangential::stiffness(steel_glass, 1e-5, 1e-5 - 0.99e-5);
     let expected = 0.5 * k_wall * plate.length_squared();
     assert!((state.wall_spring_energy[index(1)] / expected - 1.0).abs() < 1e-9);
+    // `am-sim check` and the run's header say what the start holds.
+    let start = am_sim::check::report(&sim).friction.unwrap().start;
+    assert_eq!(
+        (start.spinning, start.pair_springs, start.wall_springs),
+        (2, 1, 1)
+    );
+    assert_eq!(start.max_spin, DVec3::new(-4.0, 5.0, -6.0).length());
+    let energies = state.pair_spring_energy[0] + state.wall_spring_energy[index(1)];
+    assert!((start.spring_energy / energies - 1.0).abs() < 1e-12);
+    assert!(start.to_string().contains("2 spinning spheres"), "{start}");
 }
 
 /// A change to the texts of [`spring_bed`].

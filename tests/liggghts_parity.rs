@@ -182,7 +182,7 @@ fn the_imported_springs_act_as_in_liggghts() {
     // The rounding of the 12-digit dump and the order of sums leave far less than these bounds.
     // What they do leave comes from the set-up step: LIGGGHTS computes the t = 0 forces with the
     // springs as they are, am-sim (like any of its starts) with the springs advanced by v_t dt;
-    // the difference matters where contacts slide fast (spins of up to 10^4 rad/s here). A
+    // the difference matters where contacts slide fast (spins of up to 1.9e4 rad/s here). A
     // spring of the wrong sign or frame moves a step's velocity change by its own size.
     assert!(plate < 0.2, "{plate}");
     assert!(pairs < 0.02, "{pairs}");

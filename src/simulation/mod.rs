@@ -556,6 +556,19 @@ impl Simulation {
         )
     }
 
+    /// The tangential springs held now: `(pairs, particle–wall contacts, their energy [J])`
+    /// (M.63); zeros without rotation.
+    #[must_use]
+    pub fn held_springs(&self) -> (usize, usize, f64) {
+        self.rotation.as_ref().map_or((0, 0, 0.0), |rotation| {
+            (
+                self.tangential.entries(),
+                rotation.wall_springs.entries().count(),
+                self.tangential.spring_energy() + rotation.wall_springs.spring_energy(),
+            )
+        })
+    }
+
     /// Gives the particles the spins (with `spins`) and their contacts the tangential springs an
     /// import brought ([`crate::bed::contact_history::ImportedRotation`]), by id. Each spring gets
     /// its energy `½ k_t |ξ|²` (M.63) at the current overlap, `k_t = 8 G* √(r* δ)` (M.57), so that
