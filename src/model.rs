@@ -339,12 +339,12 @@ impl Model {
         };
         let mut particles = initial_particles(scene, &materials, &material_index);
         let mut violations = Vec::new();
-        let mut rotation = Default::default();
+        let mut imported = ImportedStart::default();
         add_imported(
             scene,
             &materials,
             &mut particles,
-            &mut rotation,
+            &mut imported,
             &mut violations,
         );
         add_inserted(
@@ -439,7 +439,7 @@ impl Model {
             &walls,
             periodic.as_ref(),
             skin,
-            &rotation,
+            &imported,
         );
         if !violations.is_empty() {
             return Err(SceneError::Invalid {
@@ -488,7 +488,7 @@ impl Model {
             }),
             pair_params,
             wall_params,
-            imported_rotation: rotation.0,
+            imported_rotation: imported.rotation,
         };
         Ok((model, particles))
     }
@@ -691,6 +691,17 @@ fn initial_particles(
     particles
 }
 
+/// What the `[[import]]` blocks bring besides particles, with where each spring came from.
+#[derive(Default)]
+struct ImportedStart {
+    /// Spins and springs, by am-sim id.
+    rotation: ImportedRotation,
+    /// Where each of `rotation.pair_springs` came from.
+    pair_sources: Vec<SpringSource>,
+    /// Where each of `rotation.wall_springs` came from.
+    wall_sources: Vec<SpringSource>,
+}
+
 /// Where an imported spring came from, for the check that it is a contact of the particles
 /// ([`check_imported_contacts`]): 16 bytes, not a message, because a bed brings a spring per
 /// contact and this list lives at the import's peak of memory.
@@ -708,7 +719,7 @@ fn add_imported(
     scene: &Scene,
     materials: &[Material],
     particles: &mut Particles,
-    rotation: &mut (ImportedRotation, Vec<SpringSource>, Vec<SpringSource>),
+    start: &mut ImportedStart,
     violations: &mut Vec<Violation>,
 ) {
     use crate::bed::{contact_history, import};
@@ -788,7 +799,11 @@ fn add_imported(
             // have nothing to act on (the springs were refused by the scene's validation).
             continue;
         }
-        let (imported, pair_sources, wall_sources) = rotation;
+        let ImportedStart {
+            rotation: imported,
+            pair_sources,
+            wall_sources,
+        } = start;
         for (row, p) in (first_id..).zip(&rows) {
             if let Some(omega) = p.angular_velocity {
                 imported.angular_velocity.push((row, omega));
@@ -879,9 +894,13 @@ fn check_imported_contacts(
     walls: &[Wall],
     periodic: Option<&Periodic>,
     skin: f64,
-    rotation: &(ImportedRotation, Vec<SpringSource>, Vec<SpringSource>),
+    start: &ImportedStart,
 ) -> Vec<Violation> {
-    let (imported, pair_sources, wall_sources) = rotation;
+    let ImportedStart {
+        rotation: imported,
+        pair_sources,
+        wall_sources,
+    } = start;
     let mut violations = Vec::new();
     // Until the first neighbour-list build, index k holds the particle of id k.
     let index = |id: u64| usize::try_from(id).expect("ids index the particles");
