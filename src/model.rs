@@ -905,12 +905,8 @@ fn check_imported_contacts(
     // Until the first neighbour-list build, index k holds the particle of id k.
     let index = |id: u64| usize::try_from(id).expect("ids index the particles");
     for (((a, b), _), source) in imported.pair_springs.iter().zip(pair_sources) {
-        let (a, b) = (index(*a), index(*b));
-        let mut separation = particles.position[b] - particles.position[a];
-        if let Some(periodic) = periodic {
-            separation = periodic.minimum_image(separation);
-        }
-        let gap = separation.length() - particles.radius[a] - particles.radius[b];
+        let (_, overlap) = crate::forces::pair_geometry(periodic, particles, index(*a), index(*b));
+        let gap = -overlap;
         if gap >= skin {
             let cfg = &scene.import[source.block];
             violations.push(Violation {
@@ -928,9 +924,11 @@ fn check_imported_contacts(
     }
     for ((id, wall, _), source) in imported.wall_springs.iter().zip(wall_sources) {
         let k = index(*id);
-        let wall_data = &walls[*wall];
-        let gap =
-            (particles.position[k] - wall_data.point).dot(wall_data.normal) - particles.radius[k];
+        let gap = -crate::forces::plane_overlap(
+            &walls[*wall],
+            particles.position[k],
+            particles.radius[k],
+        );
         if gap >= skin {
             let cfg = &scene.import[source.block];
             violations.push(Violation {

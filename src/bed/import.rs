@@ -382,14 +382,13 @@ fn read_dump_atoms(
         }
         let value = |k: usize| number(cells[k], line, names[k]);
         let optional = |k: Option<usize>| k.map_or(Ok(0.0), value);
+        // Three columns [x, y, z] as a vector.
+        let vector =
+            |[x, y, z]: [usize; 3]| Ok::<_, String>(DVec3::new(value(x)?, value(y)?, value(z)?));
         let r = value(radius)?;
         rows.push(ImportedParticle {
             id: id.map(|k| particle_id(cells[k], line)).transpose()?,
-            position: DVec3::new(
-                value(position[0])?,
-                value(position[1])?,
-                value(position[2])?,
-            ),
+            position: vector(position)?,
             velocity: DVec3::new(
                 optional(velocity[0])?,
                 optional(velocity[1])?,
@@ -397,13 +396,11 @@ fn read_dump_atoms(
             ),
             radius: check_radius(if halve { 0.5 * r } else { r }, line, names[radius])?,
             material: None,
-            angular_velocity: spin
-                .map(|[x, y, z]| Ok::<_, String>(DVec3::new(value(x)?, value(y)?, value(z)?)))
-                .transpose()?,
+            angular_velocity: spin.map(vector).transpose()?,
             wall_history: {
                 let springs = walls
                     .iter()
-                    .map(|&[x, y, z]| Ok(DVec3::new(value(x)?, value(y)?, value(z)?)))
+                    .map(|&columns| vector(columns))
                     .collect::<Result<Vec<_>, String>>()?;
                 // Most particles touch no wall: no allocation for them.
                 if springs.iter().all(|s| *s == DVec3::ZERO) {

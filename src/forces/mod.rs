@@ -405,7 +405,7 @@ fn fill<T: Copy + Send + Sync>(values: &mut [T], value: T, parallel: bool) {
     }
 }
 
-/// Overlap of particle `k` with wall `w` \[m\] (positive in contact) and the wall's normal.
+/// Overlap of particle `k` with wall `w` \[m\] (positive in contact).
 #[inline]
 #[must_use]
 pub fn wall_overlap(model: &Model, particles: &Particles, k: usize, w: usize) -> f64 {
@@ -416,7 +416,7 @@ pub fn wall_overlap(model: &Model, particles: &Particles, k: usize, w: usize) ->
 /// contact): `r − (x − p)·n`.
 #[inline]
 #[must_use]
-fn plane_overlap(wall: &Wall, position: DVec3, radius: f64) -> f64 {
+pub(crate) fn plane_overlap(wall: &Wall, position: DVec3, radius: f64) -> f64 {
     radius - (position - wall.point).dot(wall.normal)
 }
 

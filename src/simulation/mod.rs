@@ -624,8 +624,7 @@ impl Simulation {
         debug_assert_eq!(set, springs.len(), "validated: every pair is listed");
         let walls = imported.wall_springs.iter().map(|&(id, w, history)| {
             let k = index(id);
-            let wall = &self.model.walls[w];
-            let overlap = p.radius[k] - (p.position[k] - wall.point).dot(wall.normal);
+            let overlap = forces::wall_overlap(&self.model, p, k, w);
             let stiffness = tangential::stiffness(
                 friction.wall(w, p.material[k]).effective_shear_modulus,
                 p.radius[k],
