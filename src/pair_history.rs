@@ -338,13 +338,6 @@ impl TangentialHistories {
         }
     }
 
-    /// Forgets every history (a run starts with no tangential displacement).
-    pub fn clear(&mut self) {
-        for pool in &mut self.pools {
-            *pool = Pool::default();
-        }
-    }
-
     /// Energy stored in all pair springs \[J\] (M.63).
     #[must_use]
     pub fn spring_energy(&self) -> f64 {
@@ -359,6 +352,16 @@ impl TangentialHistories {
     #[must_use]
     pub fn entries(&self) -> usize {
         self.pools.iter().map(|pool| pool.held).sum()
+    }
+
+    /// Number of pairs whose spring is stretched (ξ ≠ 0).
+    #[must_use]
+    pub fn stretched(&self) -> usize {
+        self.pools
+            .iter()
+            .flat_map(Pool::springs)
+            .filter(|held| held.spring.history != glam::DVec3::ZERO)
+            .count()
     }
 
     /// Shared access for one pair pass, which must visit every owner once; call

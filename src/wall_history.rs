@@ -183,14 +183,6 @@ impl WallSprings {
         self.entries().map(|(.., s)| s.spring_energy).sum()
     }
 
-    /// Removes every spring.
-    pub fn clear(&mut self) {
-        for chunk in &mut self.chunks {
-            chunk.held.clear();
-            chunk.next.clear();
-        }
-    }
-
     /// Follows a reorder of `particles` particles (`new[i] = old[order[i]]`, particles not named
     /// are dropped with their springs: the caller books their energy).
     pub fn select(&mut self, particles: usize, order: &[u32]) {

@@ -3,7 +3,7 @@
 
 mod common;
 
-use am_sim::contact::{damping, hertz};
+use am_sim::contact::{damping, hertz, tangential};
 use am_sim::simulation::Simulation;
 use glam::DVec3;
 
@@ -76,6 +76,60 @@ fn slip(sim: &Simulation) -> f64 {
     let omega = sim.rotation.as_ref().unwrap().angular_velocity[0];
     let arm = RADIUS - 0.5 * (RADIUS - p.position[0].z);
     p.velocity[0].x - omega.y * arm
+}
+
+/// The forces at t = 0 are those of the state as it stands (docs/model.md section 10): no time has
+/// passed, so the unloaded spring of a sphere set down sliding gives no spring force, only the
+/// damper's `−γ_t v_t` (M.57, M.59 with dt = 0), and stays unloaded. Fast enough, the damper
+/// alone would exceed Coulomb's limit: the force is then μ |F_n| against the slip. (Advancing
+/// the spring by v_t dt at t = 0, as am-sim's set-up did before, adds `−k_t v_t dt`, a share
+/// k_t dt / γ_t of the slow case's force, which the test checks is far beyond its tolerance.)
+#[test]
+fn the_forces_at_t0_are_those_of_the_state_as_it_stands() {
+    let mu = 0.3;
+    let slow = sliding_sphere(1e-5, mu, 0.0, 1e-6);
+    assert_eq!(
+        slow.held_springs(),
+        (0, 0, 0.0),
+        "the spring stays unloaded"
+    );
+    let overlap = RADIUS - slow.particles.position[0].z;
+    let shear = slow.model.friction.as_ref().unwrap().wall(0, 0);
+    let stiffness = tangential::stiffness(shear.effective_shear_modulus, RADIUS, overlap);
+    let gamma = tangential::damping_coefficient(
+        slow.model.wall_params(0, 0).damping_ratio,
+        mass(),
+        stiffness,
+    );
+    let force = slow.particles.force[0];
+    let normal_force = force.z + mass() * G;
+    assert!(gamma * 1e-5 < mu * normal_force, "the slow case sticks");
+    let dt = slow.model.dt;
+    assert!(
+        stiffness * dt / gamma > 1e-3,
+        "an advanced spring would show"
+    );
+    // Tolerance: the sum of the weight and the contact's force, rounded.
+    assert!(
+        (force.x / (-gamma * 1e-5) - 1.0).abs() < 1e-9,
+        "{} vs {}",
+        force.x,
+        -gamma * 1e-5
+    );
+    let fast = sliding_sphere(0.5, mu, 0.0, 1e-6);
+    assert!(
+        gamma * 0.5 > 10.0 * mu * normal_force,
+        "the damper alone is far beyond"
+    );
+    let force = fast.particles.force[0];
+    let normal_force = force.z + mass() * G;
+    assert!(
+        (force.x / (-mu * normal_force) - 1.0).abs() < 1e-9,
+        "{} vs {}",
+        force.x,
+        -mu * normal_force
+    );
+    assert_eq!(fast.held_springs(), (0, 0, 0.0));
 }
 
 #[test]

@@ -179,13 +179,17 @@ fn the_imported_springs_act_as_in_liggghts() {
         "one step, median velocity misfit over LIGGGHTS' median change: on the plate {plate:.3e} \
          ({plate_negated:.3e} with the springs negated), elsewhere {pairs:.3e} ({pairs_negated:.3e})"
     );
-    // The rounding of the 12-digit dump and the order of sums leave far less than these bounds.
-    // What they do leave comes from the set-up step: LIGGGHTS computes the t = 0 forces with the
-    // springs as they are, am-sim (like any of its starts) with the springs advanced by v_t dt;
-    // the difference matters where contacts slide fast (spins of up to 1.9e4 rad/s here). A
-    // spring of the wrong sign or frame moves a step's velocity change by its own size.
-    assert!(plate < 0.2, "{plate}");
-    assert!(pairs < 0.02, "{pairs}");
+    // Both programs take the t = 0 forces from the springs as they stand (am-sim's set-up
+    // evaluation, LIGGGHTS' setup pass) and run the same laws, so the rounding of the 12-digit
+    // dump and the order of sums would leave misfits near 1e-6 (5e-7 measured with LIGGGHTS'
+    // Coulomb rule). What is left is the one rule am-sim does not share: its damping force may
+    // not carry a sticking contact beyond μ |F_n| (docs/model.md M.59). That touches the plate's
+    // fastest-sliding fresh contacts (1.4e-2 measured on the plate, 6e-6 elsewhere). The bounds
+    // are about twice and twenty times those; an evaluation that advanced the springs at t = 0
+    // (am-sim's earlier set-up: 4.2e-2 and 3e-3) fails them. A spring of the wrong sign or frame
+    // moves a step's velocity change by its own size.
+    assert!(plate < 0.03, "{plate}");
+    assert!(pairs < 1e-4, "{pairs}");
     assert!(plate_negated > 1.0, "{plate_negated}");
     assert!(pairs_negated > 0.1, "{pairs_negated}");
 }

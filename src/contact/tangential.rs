@@ -122,18 +122,25 @@ pub struct TangentialForce {
 }
 
 /// The tangential force of one step (M.59), given the history already turned into the tangent
-/// plane ([`rotate_history`]), the tangential relative velocity `v_t` and the time step:
+/// plane ([`rotate_history`]), the tangential relative velocity `v_t` and the time the contact
+/// acts over (`dt`; 0 at the set-up evaluation, which takes the spring as it stands):
 ///
 /// ```text
 /// ξ ← ξ + v_t dt
-/// F_s = −k_t ξ                                       (spring)
-/// if |F_s| ≤ F_max:  F_t = F_s − γ_t v_t             (sticking)
-/// else:              F_t = F_max F_s/|F_s|,  ξ ← −F_t/k_t   (sliding: the spring is rescaled)
+/// F_s = −k_t ξ                                             (spring)
+/// if |F_s| > F_max:  F_t = F_max F_s/|F_s|,  ξ ← −F_t/k_t    (sliding: the spring is rescaled)
+/// else:              F_t = F_s − γ_t v_t,  scaled down to |F_t| = F_max if it is beyond   (sticking)
 /// ```
 ///
 /// `limit` is the Coulomb limit `F_max = μ |F_n|` \[N\], or `None` for a bonded neck, which sticks
-/// (docs/model.md section 27.5). As in LIGGGHTS, the limit is tested against the spring force
-/// alone, and a sliding contact carries no damping force: the slip itself dissipates.
+/// (docs/model.md section 27.5). As in LIGGGHTS, whether the contact slides is decided by the
+/// spring force alone, and a sliding contact carries no damping force: the slip itself
+/// dissipates. Unlike LIGGGHTS, a sticking contact's damping force may not carry it beyond the
+/// limit either (LAMMPS and MercuryDPM cap the total force): |F_t| ≤ F_max always. The two differ
+/// only where a spring still short of its limit meets a fast slip, a contact met already sliding
+/// (a sphere set down sliding, or the first step of a contact of a fast pair), whose spring has
+/// had no time to load: there LIGGGHTS' damping force alone, `γ_t |v_t|`, can exceed Coulomb's
+/// limit many times over.
 #[must_use]
 pub fn tangential_force(
     history: DVec3,
@@ -145,24 +152,36 @@ pub fn tangential_force(
 ) -> TangentialForce {
     let history = history + tangential_velocity * dt;
     let spring = -stiffness * history;
-    if let Some(limit) = limit {
-        // Compared squared: no square root for a sticking contact.
-        let spring_squared = spring.length_squared();
-        if spring_squared > limit * limit {
-            // A spring of zero length cannot exceed a limit ≥ 0, so the division is safe, and
-            // k_t > 0: ξ = −F_t/k_t is ξ scaled like the force.
-            let scale = limit / spring_squared.sqrt();
-            return TangentialForce {
-                force: spring * scale,
-                history: history * scale,
-                sliding: true,
-            };
-        }
+    let Some(limit) = limit else {
+        return TangentialForce {
+            force: spring - damping * tangential_velocity,
+            history,
+            sliding: false,
+        };
+    };
+    // Compared squared: no square root for a contact within its limit. One test for both
+    // branches, so that a vector kernel takes one square root per lane.
+    let sliding = spring.length_squared() > limit * limit;
+    let force = if sliding {
+        spring
+    } else {
+        spring - damping * tangential_velocity
+    };
+    let force_squared = force.length_squared();
+    if force_squared > limit * limit {
+        // A force of zero length cannot exceed a limit ≥ 0, so the division is safe; and
+        // k_t > 0, so a sliding spring ξ = −F_t/k_t is ξ scaled like the force.
+        let scale = limit / force_squared.sqrt();
+        return TangentialForce {
+            force: force * scale,
+            history: if sliding { history * scale } else { history },
+            sliding,
+        };
     }
     TangentialForce {
-        force: spring - damping * tangential_velocity,
+        force,
         history,
-        sliding: false,
+        sliding,
     }
 }
 
@@ -230,6 +249,24 @@ mod tests {
         assert!((out.force - DVec3::new(0.0, -1.03 - 6.0, 0.0)).length() < 1e-12);
         // A bonded neck (no limit) never slides.
         assert!(!tangential_force(history, v, dt, k, 2.0, None).sliding);
+    }
+
+    /// A contact met sliding fast with an unloaded spring (a sphere set down sliding, at the
+    /// set-up evaluation, which takes the spring as it stands): its damping force alone would be
+    /// γ_t |v_t| = 2 × 3 = 6 N, twelve times a 0.5 N limit (LIGGGHTS applies it whole).
+    #[test]
+    fn a_damper_may_not_carry_a_sticking_contact_beyond_the_limit() {
+        let (k, v) = (1e4, DVec3::new(0.0, 3.0, 0.0));
+        let out = tangential_force(DVec3::ZERO, v, 0.0, k, 2.0, Some(0.5));
+        // At the limit, against the slip; the spring, within its own limit, is kept as it is.
+        assert!((out.force - DVec3::new(0.0, -0.5, 0.0)).length() < 1e-15);
+        assert_eq!(out.history, DVec3::ZERO);
+        assert!(!out.sliding);
+        // A spring loaded to 0.4 N, against a slip that adds 6 N: capped at 0.5 N too.
+        let history = DVec3::new(0.0, 0.4 / k, 0.0);
+        let out = tangential_force(history, v, 0.0, k, 2.0, Some(0.5));
+        assert!((out.force.length() - 0.5).abs() < 1e-15);
+        assert_eq!(out.history, history);
     }
 
     #[test]

@@ -369,13 +369,15 @@ impl ContactLanes {
     }
 }
 
-/// The laws of one touching pair over one step: the normal law with the bond's branch switch and
-/// its energy jump (M.35), and with friction the tangential spring and rolling resistance
+/// The laws of one touching pair acting over `interval` \[s\] (a step's dt, or 0 at the set-up
+/// evaluation, `forces::Evaluation`): the normal law with the bond's branch switch and its
+/// energy jump (M.35), and with friction the tangential spring and rolling resistance
 /// (M.57–M.63) with lever arms to the middle of the overlap (M.60). Without `ROLLING` the pair
 /// must have `μ_r = 0`, whose rolling torque is zero: it is then not evaluated.
 #[inline(always)]
 pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool, const ROLLING: bool>(
     model: &Model,
+    interval: f64,
     input: &ContactInput,
 ) -> ContactOutput {
     let [r_a, r_b] = input.radius;
@@ -403,7 +405,7 @@ pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool, const ROLLIN
     };
     let outcome = contact::normal_force(&params, &kinematics, input.state, input.criterion);
     // (M.35): damper work over the step, at the half-step velocity the force used.
-    let mut lost = model.dt * (outcome.force - outcome.elastic) * kinematics.overlap_rate;
+    let mut lost = interval * (outcome.force - outcome.elastic) * kinematics.overlap_rate;
     if BONDS && outcome.state != input.state {
         if let Some(bond) = &params.bond {
             // The stored energy jumps where eq. 25 switches branch at a given overlap.
@@ -448,7 +450,7 @@ pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool, const ROLLIN
         let step = tangential_step::<ROLLING>(
             friction,
             params.damping_ratio,
-            model.dt,
+            interval,
             &kinematics,
             &contact,
             input.held,
@@ -467,6 +469,7 @@ pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool, const ROLLIN
 /// and whose results nobody reads), compiled for each build by [`dispatch`].
 struct PairKernel<'a, const BONDS: bool, const FRICTION: bool, const ROLLING: bool> {
     model: &'a Model,
+    interval: f64,
     lanes: &'a mut ContactLanes,
 }
 
@@ -477,7 +480,7 @@ impl<const BONDS: bool, const FRICTION: bool, const ROLLING: bool> LaneLoop
     fn run(self) {
         for i in 0..LANES {
             let input = self.lanes.input::<BONDS, FRICTION>(i);
-            let out = contact_step::<BONDS, FRICTION, ROLLING>(self.model, &input);
+            let out = contact_step::<BONDS, FRICTION, ROLLING>(self.model, self.interval, &input);
             self.lanes.store::<BONDS, FRICTION>(i, &out);
         }
     }
@@ -649,11 +652,13 @@ pub fn kernel_build() -> &'static str {
     InstructionSet::detect().name()
 }
 
-/// Runs the laws over every lane with the kernel built for `set`.
+/// Runs the laws over every lane with the kernel built for `set`, the contacts acting over
+/// `interval` \[s\].
 #[inline]
 pub(super) fn run<const BONDS: bool, const FRICTION: bool>(
     set: InstructionSet,
     model: &Model,
+    interval: f64,
     lanes: &mut ContactLanes,
 ) {
     // In a vector kernel every lane evaluates the rolling law (a square root and four
@@ -663,10 +668,10 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool>(
         // No lane is bonded or may bond: `contact::normal_force` would take the Hertz branch
         // in every lane and keep every state unbonded, which the build without bonds does
         // with the same operations, vectorised.
-        run_build::<false, FRICTION>(set, model, lanes, rolling);
+        run_build::<false, FRICTION>(set, model, interval, lanes, rolling);
         lanes.new_state = [BondState::Unbonded; LANES];
     } else {
-        run_build::<BONDS, FRICTION>(set, model, lanes, rolling);
+        run_build::<BONDS, FRICTION>(set, model, interval, lanes, rolling);
     }
 }
 
@@ -675,13 +680,28 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool>(
 fn run_build<const BONDS: bool, const FRICTION: bool>(
     set: InstructionSet,
     model: &Model,
+    interval: f64,
     lanes: &mut ContactLanes,
     rolling: bool,
 ) {
     if rolling {
-        dispatch(set, PairKernel::<BONDS, FRICTION, true> { model, lanes });
+        dispatch(
+            set,
+            PairKernel::<BONDS, FRICTION, true> {
+                model,
+                interval,
+                lanes,
+            },
+        );
     } else {
-        dispatch(set, PairKernel::<BONDS, FRICTION, false> { model, lanes });
+        dispatch(
+            set,
+            PairKernel::<BONDS, FRICTION, false> {
+                model,
+                interval,
+                lanes,
+            },
+        );
     }
 }
 
@@ -780,9 +800,9 @@ impl KernelBench {
                 }
             }
             if friction {
-                run::<false, true>(self.set, &self.model, &mut self.lanes);
+                run::<false, true>(self.set, &self.model, self.model.dt, &mut self.lanes);
             } else {
-                run::<false, false>(self.set, &self.model, &mut self.lanes);
+                run::<false, false>(self.set, &self.model, self.model.dt, &mut self.lanes);
             }
             sum += (0..batch.len())
                 .map(|i| self.lanes.output(i).force_on_a.x)
@@ -965,8 +985,8 @@ pub(in crate::forces) mod tests {
             uniform.set::<false, true>(i, &input);
         }
         let set = InstructionSet::detect();
-        run::<false, true>(set, &model, &mut per_contact);
-        run::<false, true>(set, &model, &mut uniform);
+        run::<false, true>(set, &model, model.dt, &mut per_contact);
+        run::<false, true>(set, &model, model.dt, &mut uniform);
         for i in 0..LANES {
             assert_eq!(
                 bits(&uniform.output(i)),
@@ -1001,7 +1021,11 @@ pub(in crate::forces) mod tests {
             let one_by_one: Vec<ContactOutput> = batch
                 .iter()
                 .map(|input| {
-                    contact_step::<BONDS, FRICTION, true>(model, std::hint::black_box(input))
+                    contact_step::<BONDS, FRICTION, true>(
+                        model,
+                        model.dt,
+                        std::hint::black_box(input),
+                    )
                 })
                 .collect();
             // The lanes are reused from batch to batch, as the pair pass does: what one batch
@@ -1010,7 +1034,7 @@ pub(in crate::forces) mod tests {
                 for (i, input) in batch.iter().enumerate() {
                     lanes.set::<BONDS, FRICTION>(i, input);
                 }
-                run::<BONDS, FRICTION>(set, model, lanes);
+                run::<BONDS, FRICTION>(set, model, model.dt, lanes);
                 for (i, expected) in one_by_one.iter().enumerate() {
                     assert_eq!(bits(&lanes.output(i)), bits(expected), "{set:?}, lane {i}");
                 }
@@ -1059,7 +1083,7 @@ pub(in crate::forces) mod tests {
         for batch in bench.inputs.chunks(LANES) {
             let outputs = batch
                 .iter()
-                .map(|input| contact_step::<false, true, false>(&model, input));
+                .map(|input| contact_step::<false, true, false>(&model, model.dt, input));
             let mut batch_sum = 0.0;
             for (input, out) in batch.iter().zip(outputs) {
                 batch_sum += out.force_on_a.x;

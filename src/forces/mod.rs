@@ -211,13 +211,41 @@ fn tangential_step<const ROLLING: bool>(
     }
 }
 
+/// The two kinds of force pass of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Evaluation {
+    /// The set-up evaluation: the forces of the state as it stands, F(t₀) from x(t₀), v(t₀) and
+    /// the springs the particles start with. No time passes in it, so no spring advances
+    /// (`ξ + v_t · 0`, M.59) and no damper or slip does work; a spring beyond its Coulomb limit
+    /// is rescaled to it, as at any evaluation. LAMMPS and LIGGGHTS do the same in their setup
+    /// pass (`shearupdate = 0`): an imported bed's first step starts from the forces LIGGGHTS'
+    /// own start would have. The pass sets the forces, torques and heat sums before adding
+    /// into them.
+    SetUp,
+    /// A step's evaluation after the drift: the contacts act over dt (the springs advance by
+    /// `v_t dt`, the dampers and slips do work over dt). The step's opening pass
+    /// (`integrate::kick_drift`) has left the forces at each particle's weight `m g` and the
+    /// torques, heat flows and total conductances at zero, so the pass adds into them without
+    /// setting them first (with heat: three parallel regions fewer per step).
+    Step,
+}
+
+impl Evaluation {
+    /// The time the contacts act over \[s\]: 0 at the set-up, `dt` in a step.
+    #[must_use]
+    pub fn interval(self, dt: f64) -> f64 {
+        match self {
+            Self::SetUp => 0.0,
+            Self::Step => dt,
+        }
+    }
+}
+
 /// The force pass (steps 4-5 of the step order): every particle's force, with rotation its
 /// torque, with `[thermal]` its first-substep heat flows and total conductances; bond states
 /// (`states`, per slot, given when the scene has a bond law) and tangential histories advance by
-/// one step. Returns what the per-step guards need. `cleared`: the forces hold each particle's
-/// weight `m g` and the torques, heat flows and total conductances are zero (the step's opening
-/// pass, `integrate::kick_drift`, leaves them so), and the pass adds into them without setting
-/// them first (with heat: three parallel regions fewer per step). `near`: the near lists,
+/// one step (at a [`Evaluation::Step`]). Returns what the per-step guards need. `evaluation`:
+/// which of the run's two kinds of force pass this is ([`Evaluation`]). `near`: the near lists,
 /// recorded anew if `refresh_near` (or if they do not belong to the list's build), read
 /// otherwise. `walls`: the particles that may touch a wall, taken anew from the list's
 /// reference positions if they belong to another build.
@@ -231,8 +259,10 @@ pub fn compute(
     states: Option<&mut [BondState]>,
     rotation: Option<PassRotation<'_>>,
     mut heat: Option<PassHeat<'_>>,
-    cleared: bool,
+    evaluation: Evaluation,
 ) -> ForceSummary {
+    let cleared = evaluation == Evaluation::Step;
+    let interval = evaluation.interval(model.dt);
     let parallel = crate::worth_parallel(particles.len());
     let set = InstructionSet::detect();
     walls.refresh(model, list, &particles.radius);
@@ -300,7 +330,7 @@ pub fn compute(
             (near, refresh_near),
             omega,
             &targets,
-            set,
+            (set, interval),
             parallel,
         );
         if let Some(h) = histories {
@@ -322,18 +352,18 @@ pub fn compute(
     });
     // As for the pair pass: one compiled particle pass per combination of optional physics.
     let own = match (rotation.is_some(), heat.is_some()) {
-        (false, false) => {
-            particle_pass::run::<false, false>(model, particles, rotation, heat, listed, parallel)
-        }
-        (false, true) => {
-            particle_pass::run::<false, true>(model, particles, rotation, heat, listed, parallel)
-        }
-        (true, false) => {
-            particle_pass::run::<true, false>(model, particles, rotation, heat, listed, parallel)
-        }
-        (true, true) => {
-            particle_pass::run::<true, true>(model, particles, rotation, heat, listed, parallel)
-        }
+        (false, false) => particle_pass::run::<false, false>(
+            model, interval, particles, rotation, heat, listed, parallel,
+        ),
+        (false, true) => particle_pass::run::<false, true>(
+            model, interval, particles, rotation, heat, listed, parallel,
+        ),
+        (true, false) => particle_pass::run::<true, false>(
+            model, interval, particles, rotation, heat, listed, parallel,
+        ),
+        (true, true) => particle_pass::run::<true, true>(
+            model, interval, particles, rotation, heat, listed, parallel,
+        ),
     };
     let mut summary = pairs.merge(own);
     summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
@@ -466,7 +496,15 @@ mod tests {
         rotation: &mut Rotation,
         listed: Option<&[u32]>,
     ) -> ForceSummary {
-        particle_pass::run::<true, false>(model, particles, Some(rotation), None, listed, false)
+        particle_pass::run::<true, false>(
+            model,
+            model.dt,
+            particles,
+            Some(rotation),
+            None,
+            listed,
+            false,
+        )
     }
 
     /// A scene of 20 µm steel-like spheres (given after it) on a plate at z = 0, with friction;
@@ -700,7 +738,7 @@ material = "m"
             None,
             Some(rotation_pass),
             None,
-            false,
+            Evaluation::SetUp,
         );
         let half = energies.map(|e| 0.5 * e);
         assert_eq!(particles.dissipated, [half[0], half[0], half[1], half[1]]);

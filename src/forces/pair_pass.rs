@@ -101,7 +101,8 @@ struct OpenHeat<'t, 'v> {
 /// The pair pass over every slab, compiled for one combination of optional physics: bond
 /// states (`BONDS`), tangential springs and torques (`FRICTION`), conduction (`HEAT`). A target
 /// the combination leaves out is ignored even if present. A slab visit that records its near
-/// list sifts every slot of its owners; the others sift their near lists only.
+/// list sifts every slot of its owners; the others sift their near lists only. The contacts act
+/// over `interval` \[s\] (`forces::Evaluation::interval`), with the laws built for `set`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     model: &Model,
@@ -110,7 +111,7 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     (near, refresh_near): (&mut NearPairs, bool),
     omega: Option<&[DVec3]>,
     targets: &PairTargets<'_>,
-    set: InstructionSet,
+    (set, interval): (InstructionSet, f64),
     parallel: bool,
 ) -> ForceSummary {
     let near_skin = list.near_skin();
@@ -121,7 +122,7 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         ForceSummary::default(),
         |summary, slab| {
             let targets = &targets.open::<BONDS, FRICTION, HEAT>(slab);
-            let mut batch = Batch::new(model, slab);
+            let mut batch = Batch::new(model, interval, slab);
             if slab.records_near() {
                 for window in slab.windows() {
                     sift::<BONDS, FRICTION>(
@@ -289,6 +290,8 @@ struct OwnerSums<'s> {
 /// slots found since the last flush, and the sums of the owner being written back.
 struct Batch<'r, 's> {
     slab: &'r SlabVisit<'s>,
+    /// The time the contacts act over \[s\]: the step's dt, 0 at the set-up evaluation.
+    interval: f64,
     lanes: ContactLanes,
     filled: usize,
     events: Vec<Event<'s>>,
@@ -344,11 +347,13 @@ fn recycle<T, U>(mut empty: Vec<T>) -> Vec<U> {
 }
 
 impl<'r, 's> Batch<'r, 's> {
-    /// A batch for the visit of `slab` with `model`'s contacts, with this thread's buffers.
-    fn new(model: &Model, slab: &'r SlabVisit<'s>) -> Self {
+    /// A batch for the visit of `slab` with `model`'s contacts acting over `interval` \[s\],
+    /// with this thread's buffers.
+    fn new(model: &Model, interval: f64, slab: &'r SlabVisit<'s>) -> Self {
         let buffers = BATCH_BUFFERS.with_borrow_mut(std::mem::take);
         Self {
             slab,
+            interval,
             lanes: ContactLanes::for_model(model),
             filled: 0,
             events: recycle(buffers.events),
@@ -379,7 +384,7 @@ impl<'r, 's> Batch<'r, 's> {
         summary: &mut ForceSummary,
     ) {
         if self.filled > 0 {
-            lanes::run::<BONDS, FRICTION>(set, model, &mut self.lanes);
+            lanes::run::<BONDS, FRICTION>(set, model, self.interval, &mut self.lanes);
         }
         let states = targets.states.as_ref().filter(|_| BONDS);
         let histories = targets.tangential.as_ref().filter(|_| FRICTION);

@@ -25,6 +25,7 @@ use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
 #[allow(clippy::too_many_lines)]
 pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     model: &Model,
+    interval: f64,
     particles: &mut Particles,
     rotation: Option<&mut Rotation>,
     heat: Option<PassHeat<'_>>,
@@ -136,14 +137,24 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
                     held,
                 };
                 if round.contact::<ROTATION>(particle, w, &input) {
-                    round.write_back::<ROTATION>(model, set, &outputs, springs.as_deref_mut());
+                    round.write_back::<ROTATION>(
+                        model,
+                        (set, interval),
+                        &outputs,
+                        springs.as_deref_mut(),
+                    );
                 }
             }
             round.end_particle(particle);
             if round.filled == 0 {
                 // Nothing waits on the kernel (a particle off the walls, with heat): its events
                 // are written now, so that they do not pile up over the chunk.
-                round.write_back::<ROTATION>(model, set, &outputs, springs.as_deref_mut());
+                round.write_back::<ROTATION>(
+                    model,
+                    (set, interval),
+                    &outputs,
+                    springs.as_deref_mut(),
+                );
             }
             let heat_rate = heat.map_or(0.0, |h| {
                 let mut added = None;
@@ -171,7 +182,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
             summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
             summary.observe_overlap(max_overlap / state.radius[k], k);
         }
-        round.write_back::<ROTATION>(model, set, &outputs, springs);
+        round.write_back::<ROTATION>(model, (set, interval), &outputs, springs);
     };
     let summary = scatter::for_each_chunk(
         count,
@@ -275,12 +286,12 @@ impl<'c> WallRound<'c> {
     fn write_back<const FRICTION: bool>(
         &mut self,
         model: &Model,
-        set: InstructionSet,
+        (set, interval): (InstructionSet, f64),
         outputs: &Outputs<'_>,
         mut springs: Option<&mut Chunk>,
     ) {
         if self.filled > 0 {
-            wall_lanes::run::<FRICTION>(set, model.dt, &mut self.lanes);
+            wall_lanes::run::<FRICTION>(set, interval, &mut self.lanes);
         }
         let (mut force, mut torque, mut lost) = self.sums;
         let mut lane = 0;

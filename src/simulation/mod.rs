@@ -24,7 +24,7 @@ use std::ops::Range;
 use crate::bed::contact_history::ImportedRotation;
 use crate::contact::tangential::{self, TangentialSpring};
 use crate::contact::{BondState, hertz, rolling};
-use crate::forces::{self, ForceSummary};
+use crate::forces::{self, Evaluation, ForceSummary};
 use crate::integrate;
 use crate::laser;
 use crate::model::Model;
@@ -195,18 +195,14 @@ impl Simulation {
         let mut imported = std::mem::take(&mut sim.model.imported_rotation);
         // Sorted by key: each listed pair finds its spring by a binary search.
         imported.pair_springs.sort_unstable_by_key(|s| s.0);
-        sim.set_imported_rotation(&imported, true);
-        imported.angular_velocity = Vec::new();
+        sim.set_imported_rotation(&imported);
+        drop(imported);
         if sim.model.deposition.is_none() {
             // With a deposition the run starts from the settled bed (`restart_clock`).
             sim.apply_initial_regions();
         }
-        sim.force_summary = sim.compute_forces(false);
+        sim.force_summary = sim.compute_forces(Evaluation::SetUp);
         sim.non_finite_force = sim.particles.force.iter().position(|f| !f.is_finite());
-        sim.clear_tangential_history();
-        // The springs the particles came with are the run's start; the set-up evaluation (whose
-        // forces include them) advanced them by v_t dt, like those of a fresh start.
-        sim.set_imported_rotation(&imported, false);
         // The t = 0 evaluation did no work over time; the energy the run starts with already
         // counts any bond it formed.
         sim.particles.dissipated.fill(0.0);
@@ -499,12 +495,10 @@ impl Simulation {
         }
     }
 
-    /// The force pass (steps 4-5). With `[thermal]` it also computes the contact conductances
-    /// and the first substep's heat flows. `cleared`: the forces are already at the weights and
-    /// the torques (and with heat, the heat flows and total conductances) at zero, as the step's
-    /// opening pass leaves them (the pass then skips setting them: one parallel region and one
-    /// sweep fewer per step, three with heat).
-    fn compute_forces(&mut self, cleared: bool) -> ForceSummary {
+    /// The force pass (steps 4-5), of either kind ([`Evaluation`]: the set-up's, or a step's
+    /// after the opening pass). With `[thermal]` it also computes the contact conductances and
+    /// the first substep's heat flows.
+    fn compute_forces(&mut self, evaluation: Evaluation) -> ForceSummary {
         let heat = match (&self.model.thermal, &mut self.thermal) {
             (Some(model), Some(state)) => {
                 let ThermalState {
@@ -552,30 +546,36 @@ impl Simulation {
                 histories: &mut self.tangential,
             }),
             heat,
-            cleared,
+            evaluation,
         )
     }
 
-    /// The tangential springs held now: `(pairs, particle–wall contacts, their energy [J])`
-    /// (M.63); zeros without rotation.
+    /// The tangential springs stretched now (ξ ≠ 0): `(pairs, particle–wall contacts, their
+    /// energy [J])` (M.63); zeros without rotation. (Every contact holds a spring, of zero
+    /// length until it has acted over a step: at the start of a run at rest, say.)
     #[must_use]
     pub fn held_springs(&self) -> (usize, usize, f64) {
         self.rotation.as_ref().map_or((0, 0, 0.0), |rotation| {
             (
-                self.tangential.entries(),
-                rotation.wall_springs.entries().count(),
+                self.tangential.stretched(),
+                rotation
+                    .wall_springs
+                    .entries()
+                    .filter(|(.., spring)| spring.history != glam::DVec3::ZERO)
+                    .count(),
                 self.tangential.spring_energy() + rotation.wall_springs.spring_energy(),
             )
         })
     }
 
-    /// Gives the particles the spins (with `spins`) and their contacts the tangential springs an
-    /// import brought ([`crate::bed::contact_history::ImportedRotation`]), by id. Each spring gets
+    /// Gives the particles the spins and their contacts the tangential springs an import brought
+    /// ([`crate::bed::contact_history::ImportedRotation`]), by id, before the set-up evaluation
+    /// takes the forces from them ([`Evaluation::SetUp`]). Each spring gets
     /// its energy `½ k_t |ξ|²` (M.63) at the current overlap, `k_t = 8 G* √(r* δ)` (M.57), so that
     /// the run's energy balance starts from it. Scene validation admits springs only with
     /// friction, and only for pairs and walls within the skin, which the list and the wall
     /// candidates hold.
-    fn set_imported_rotation(&mut self, imported: &ImportedRotation, spins: bool) {
+    fn set_imported_rotation(&mut self, imported: &ImportedRotation) {
         let (Some(rotation), Some(friction)) = (&mut self.rotation, &self.model.friction) else {
             return;
         };
@@ -590,10 +590,8 @@ impl Simulation {
                 u32::try_from(k).expect("fewer than 2^32 particles");
         }
         let index = |id: u64| index_of[usize::try_from(id).expect("an id of the bed")] as usize;
-        if spins {
-            for &(id, omega) in &imported.angular_velocity {
-                rotation.angular_velocity[index(id)] = omega;
-            }
+        for &(id, omega) in &imported.angular_velocity {
+            rotation.angular_velocity[index(id)] = omega;
         }
         let springs = &imported.pair_springs;
         let periodic = self.model.periodic.as_ref();
@@ -637,16 +635,6 @@ impl Simulation {
             (k, w, spring)
         });
         rotation.wall_springs = crate::wall_history::WallSprings::from_entries(p.len(), walls);
-    }
-
-    /// The set-up evaluation at t = 0 computed the tangential forces with a history advanced by
-    /// v_t dt; a run starts with no tangential displacement, so the history is cleared (the
-    /// energy it held was not counted either: `dissipated` is reset too).
-    fn clear_tangential_history(&mut self) {
-        if let Some(rotation) = &mut self.rotation {
-            self.tangential.clear();
-            rotation.wall_springs.clear();
-        }
     }
 
     /// Laser absorption with the beam at mid-step, on the drifted positions (before the force
@@ -727,7 +715,7 @@ impl Simulation {
         self.absorb_laser();
         // The opening pass left the forces at the weights and the torques and heat sums at zero
         // (a rebuild permutes and drops particles with their forces).
-        let summary = self.compute_forces(true);
+        let summary = self.compute_forces(Evaluation::Step);
         self.peak_overlap_ratio = self.peak_overlap_ratio.max(summary.max_overlap_ratio);
         self.force_summary = summary;
         let first_flows = self.thermal.is_some().then_some(summary.max_heat_rate);
