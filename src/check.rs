@@ -115,7 +115,8 @@ pub struct RotationStart {
     pub spinning: usize,
     /// Largest |ω| \[rad/s\].
     pub max_spin: f64,
-    /// Pairs holding a tangential spring.
+    /// Pairs holding a stretched tangential spring (ξ ≠ 0) after the set-up evaluation: an
+    /// import's springs, less those of contacts without normal load, whose Coulomb limit is zero.
     pub pair_springs: usize,
     /// Particle–wall contacts holding one.
     pub wall_springs: usize,
