@@ -15,7 +15,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 BENCH=$(realpath "${1:-../shared/bench/liggghts}")
 command -v liggghts >/dev/null || { echo "liggghts not found: apt-get install -y liggghts openmpi-bin" >&2; exit 1; }
-# Checked before LIGGGHTS runs, not after: coord.py (and the heat comparison) need them.
+# Checked before LIGGGHTS runs, not after: coord.py and the heat comparison need them.
 python3 -c 'import numpy, scipy, h5py' 2>/dev/null || { echo "python3 lacks one of numpy scipy h5py: pip install numpy scipy h5py" >&2; exit 1; }
 cargo build --release --quiet
 AM_SIM=$(realpath target/release/am-sim)
