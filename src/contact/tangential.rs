@@ -117,7 +117,8 @@ pub struct TangentialForce {
     pub force: DVec3,
     /// History after this step \[m\].
     pub history: DVec3,
-    /// True when the Coulomb limit was reached (the contact slides).
+    /// True when the spring alone exceeded the Coulomb limit: the contact slides and its spring
+    /// was rescaled. A sticking contact whose damper was capped at the limit is not sliding.
     pub sliding: bool,
 }
 
