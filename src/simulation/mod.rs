@@ -22,7 +22,7 @@
 use std::ops::Range;
 
 use crate::bed::contact_history::ImportedRotation;
-use crate::contact::tangential::{self, TangentialSpring};
+use crate::contact::tangential::TangentialSpring;
 use crate::contact::{BondState, hertz, rolling};
 use crate::forces::{self, Evaluation, ForceSummary};
 use crate::integrate;
@@ -570,13 +570,14 @@ impl Simulation {
 
     /// Gives the particles the spins and their contacts the tangential springs an import brought
     /// ([`crate::bed::contact_history::ImportedRotation`]), by id, before the set-up evaluation
-    /// takes the forces from them ([`Evaluation::SetUp`]). Each spring gets
-    /// its energy `½ k_t |ξ|²` (M.63) at the current overlap, `k_t = 8 G* √(r* δ)` (M.57), so that
-    /// the run's energy balance starts from it. Scene validation admits springs only with
-    /// friction, and only for pairs and walls within the skin, which the list and the wall
-    /// candidates hold.
+    /// takes the forces from them ([`Evaluation::SetUp`]). That evaluation runs each spring
+    /// through the law and stores it with its energy `½ k_t |ξ|²` at the imported overlap (M.57,
+    /// M.63), from which the run's energy balance starts (the set-up's own lost energy is
+    /// discarded), so the springs are given here without one. Scene validation admits springs
+    /// only with friction, and only for pairs and walls within the skin, which the list and the
+    /// wall candidates hold.
     fn set_imported_rotation(&mut self, imported: &ImportedRotation) {
-        let (Some(rotation), Some(friction)) = (&mut self.rotation, &self.model.friction) else {
+        let Some(rotation) = &mut self.rotation else {
             return;
         };
         if imported.is_empty() {
@@ -593,8 +594,12 @@ impl Simulation {
         for &(id, omega) in &imported.angular_velocity {
             rotation.angular_velocity[index(id)] = omega;
         }
+        // Energy 0 until the set-up evaluation (above).
+        let spring = |history| TangentialSpring {
+            history,
+            spring_energy: 0.0,
+        };
         let springs = &imported.pair_springs;
-        let periodic = self.model.periodic.as_ref();
         let mut set = 0;
         for (slot, a, b) in self.neighbors.pairs() {
             let (ia, ib) = (p.id[a], p.id[b]);
@@ -604,36 +609,15 @@ impl Simulation {
             // Stored as the lower id's displacement; the list's owner is `a`.
             let history = springs[found].1;
             let history = if ia < ib { history } else { -history };
-            let (_, overlap) = forces::pair_geometry(periodic, p, a, b);
-            let stiffness = tangential::stiffness(
-                friction
-                    .pair(p.material[a], p.material[b])
-                    .effective_shear_modulus,
-                hertz::effective_radius(p.radius[a], p.radius[b]),
-                overlap,
-            );
-            let spring = TangentialSpring {
-                history,
-                spring_energy: tangential::spring_energy(stiffness, history),
-            };
-            self.tangential.set(&self.neighbors, slot, a, spring);
+            self.tangential
+                .set(&self.neighbors, slot, a, spring(history));
             set += 1;
         }
         debug_assert_eq!(set, springs.len(), "validated: every pair is listed");
-        let walls = imported.wall_springs.iter().map(|&(id, w, history)| {
-            let k = index(id);
-            let overlap = forces::wall_overlap(&self.model, p, k, w);
-            let stiffness = tangential::stiffness(
-                friction.wall(w, p.material[k]).effective_shear_modulus,
-                p.radius[k],
-                overlap,
-            );
-            let spring = TangentialSpring {
-                history,
-                spring_energy: tangential::spring_energy(stiffness, history),
-            };
-            (k, w, spring)
-        });
+        let walls = imported
+            .wall_springs
+            .iter()
+            .map(|&(id, w, history)| (index(id), w, spring(history)));
         rotation.wall_springs = crate::wall_history::WallSprings::from_entries(p.len(), walls);
     }
 
