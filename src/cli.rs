@@ -265,6 +265,7 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
             )
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
+        let started = Instant::now();
         let report = pool.install(|| {
             crate::bed::deposition::settle(&mut sim, &settings, |r| {
                 bar.set_position(r.steps);
@@ -277,17 +278,27 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
             let _ = writers.close();
             return Err(message);
         }
+        let wall = started.elapsed().as_secs_f64();
+        #[allow(clippy::cast_precision_loss)]
+        let speed = (report.steps as f64) * (sim.particles.len() as f64) / wall.max(1e-9);
         let line = format!(
-            "deposition: {} steps ({:.4e} s), kinetic energy per particle {:.2e} m̄ g d̄ (criterion {:.1e})",
+            "deposition: {} steps ({:.4e} s) in {wall:.3} s wall time ({speed:.3e} particle-steps/s), kinetic energy per particle {:.2e} m̄ g d̄ (criterion {:.1e})",
             report.steps, report.time, report.kinetic_energy_ratio, settings.kinetic_energy_ratio
+        );
+        // The deposition's own error indicators, as the run's summary gives the run's.
+        let indicators = format!(
+            "  deposition's error indicators: energy balance residual {:.2e} relative (M.35); largest overlap {:.3} % of the smaller radius (every step)",
+            report.energy_residual,
+            100.0 * report.peak_overlap_ratio
         );
         if !report.settled {
             let _ = writers.close();
             return Err(format!(
-                "{line}: not settled within deposition.max_duration_s; raise it, or raise deposition.kinetic_energy_ratio"
+                "{line}: not settled within deposition.max_duration_s; raise it, or raise deposition.kinetic_energy_ratio\n{indicators}"
             ));
         }
         say!("{line}: settled; the run starts now (t = 0)");
+        say!("{indicators}");
     }
 
     // Ctrl-C asks the loop to stop after the current step; the last state is then written.

@@ -108,6 +108,25 @@ fn the_run_starts_on_the_settled_bed() {
         "{stdout}"
     );
     assert!(stdout.contains("done: 100 steps"), "{stdout}");
+    // The deposition reports its run time and its own error indicators, as a run does: its
+    // energy balance closes to its first-order damper error (a few per cent at most here, as in
+    // tests/bed_deposition.rs), the background damping's share booked as lost.
+    let deposition = stdout
+        .lines()
+        .find(|l| l.starts_with("deposition: "))
+        .expect("a deposition line");
+    assert!(deposition.contains(" s wall time ("), "{deposition}");
+    let indicators = stdout
+        .lines()
+        .find(|l| l.contains("deposition's error indicators"))
+        .expect("the deposition's error indicators");
+    let residual: f64 = indicators
+        .split("energy balance residual ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|value| value.parse().ok())
+        .expect("a residual");
+    assert!(residual.abs() < 0.05, "{indicators}");
     let series = std::fs::read_to_string(cwd.path().join("series.csv")).unwrap();
     let rows: Vec<Vec<f64>> = series
         .lines()
