@@ -167,3 +167,28 @@ fn a_bed_that_does_not_settle_in_time_stops_the_run() {
         "{stderr}"
     );
 }
+
+#[test]
+fn an_energy_blow_up_stops_the_deposition_at_its_next_check() {
+    let root = tempfile::tempdir().unwrap();
+    let path = write_scene(root.path(), 0.1);
+    // dt = 1.2 µs is 1.5 × the stability limit of this bed (7.9e-7 s, `am-sim check`): too
+    // little for an overlap beyond the guard's 30 % soon (that first comes at step 6335), enough
+    // to create energy. With the guard at 0.1 of the energy scale, the first check, at step
+    // 1000, finds about twice that (0.22).
+    let scene = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("dt_s = 1e-7", "dt_s = 1.2e-6")
+        + "[guards]\nmax_energy_residual = 0.1\n";
+    std::fs::write(&path, scene).unwrap();
+    let out = am_sim(root.path(), &[&path, "--threads", "1", "-q", "--force"]);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success());
+    for expected in [
+        "deposition: step 1000 ",
+        "an energy blow-up",
+        "guards.max_energy_residual = 0.1",
+    ] {
+        assert!(stderr.contains(expected), "lacks {expected:?}: {stderr}");
+    }
+}

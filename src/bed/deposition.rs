@@ -112,7 +112,9 @@ pub fn free_fall_steps(particles: &Particles, gravity: glam::DVec3, dt: f64) -> 
 
 /// Steps `sim` with the laser off until the criterion of `settings` holds at a check, or
 /// `max_steps` have run; then resets the step counter, the clock and the dissipated energy (the
-/// settled bed is the scene's starting state). Calls `progress` after every check.
+/// settled bed is the scene's starting state). Calls `progress` after every check. A tripped
+/// guard stops it ([`DepositionReport::stopped`]): the per-step guards after every step, the
+/// energy guard at every check, as a run checks it at its output steps (docs/stability.md).
 pub fn settle(
     sim: &mut Simulation,
     settings: &Deposition,
@@ -170,6 +172,13 @@ pub fn settle(
         }
         report.steps += chunk;
         report.time = sim.time;
+        // At each check, the energy guard a run applies at its output steps: a blow-up slow
+        // enough to pass the per-step guards stops the deposition too.
+        if let Some(trip) = sim.energy_guard_trip(&sim.diagnostics()) {
+            report.stopped = Some(trip);
+            hand_back(sim, laser, heat);
+            return report;
+        }
         report.kinetic_energy_ratio = kinetic_energy_ratio(&sim.particles, gravity);
         report.settled = report.steps >= earliest
             && report.kinetic_energy_ratio <= settings.kinetic_energy_ratio;
