@@ -337,6 +337,9 @@ struct LoopOutcome {
     peak_stability_ratio: f64,
     /// Largest dt / smallest thermal time constant seen at a series row or frame.
     peak_thermal_ratio: f64,
+    /// Highest particle temperature seen at the start, a series row or a frame \[K\] (0
+    /// without `[thermal]`): under a laser it can lie far above the last state's.
+    peak_temperature: f64,
 }
 
 /// Steps the simulation to the end, writing frames and series. The guards (docs/stability.md)
@@ -356,6 +359,8 @@ fn run_loop(
     let mut peak_stability_ratio = initial.stability_ratio;
     let thermal_ratio = |d: &Diagnostics| d.thermal.map_or(0.0, |t| t.time_step_ratio);
     let mut peak_thermal_ratio = thermal_ratio(&initial);
+    let temperature = |d: &Diagnostics| d.thermal.map_or(0.0, |t| t.max_temperature);
+    let mut peak_temperature = temperature(&initial);
     let mut check_and_write =
         |sim: &Simulation, writers: &mut Writers, last: bool| -> Result<(), String> {
             if let Some(trip) = sim.guard_trip() {
@@ -379,6 +384,7 @@ fn run_loop(
             let d = sim.diagnostics();
             peak_stability_ratio = peak_stability_ratio.max(d.stability_ratio);
             peak_thermal_ratio = peak_thermal_ratio.max(thermal_ratio(&d));
+            peak_temperature = peak_temperature.max(temperature(&d));
             if let Some(trip) = sim.energy_guard_trip(&d) {
                 return Err(stop(sim, writers, &trip, start.elapsed().as_secs_f64()));
             }
@@ -424,6 +430,7 @@ fn run_loop(
         ending,
         peak_stability_ratio,
         peak_thermal_ratio,
+        peak_temperature,
     })
 }
 
@@ -511,8 +518,9 @@ fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
     );
     if let (Some(t0), Some(t1)) = (initial.thermal, d.thermal) {
         say!(
-            "  thermal: max temperature {:.1} K, {} particles melted; laser absorbed {:.4e} J, boundaries {:+.4e} J",
+            "  thermal: max temperature {:.1} K now, {:.1} K at most (at output steps); {} particles melted; laser absorbed {:.4e} J, boundaries {:+.4e} J",
             t1.max_temperature,
+            outcome.peak_temperature.max(t1.max_temperature),
             t1.melted,
             t1.laser_energy,
             t1.boundary_energy

@@ -322,3 +322,55 @@ fn simd_caps_the_kernel_without_changing_a_bit_of_the_results() {
     );
     assert!(!dir.path().join("friction_pile.csv").exists());
 }
+
+/// The thermal example of docs/scene-format.md (`spot.toml`), as the page gives it.
+fn spot_scene_of_the_docs() -> String {
+    let page = std::fs::read_to_string(format!(
+        "{}/docs/scene-format.md",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    page.split("```toml\n")
+        .skip(1)
+        .map(|block| block.split("```").next().unwrap_or_default())
+        .find(|block| block.contains("series_csv = \"spot.csv\""))
+        .expect("the spot.toml example in docs/scene-format.md")
+        .to_string()
+}
+
+#[test]
+fn the_summary_gives_the_highest_temperature_now_and_at_the_output_steps() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("spot.toml"), spot_scene_of_the_docs()).unwrap();
+    let out = am_sim(dir.path(), &["spot.toml", "--threads", "2", "-q"]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", text(&out.stderr));
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("thermal: max temperature"))
+        .expect("the thermal line");
+    let kelvin = |after: &str| -> f64 {
+        line.split(after)
+            .nth(1)
+            .and_then(|rest| rest.split_whitespace().next())
+            .and_then(|value| value.parse().ok())
+            .unwrap_or_else(|| panic!("no value after {after:?}: {line}"))
+    };
+    let (now, peak) = (kelvin("max temperature "), kelvin("K now, "));
+    // The highest of the series column is the peak the summary gives (to its 0.1 K print).
+    let series = std::fs::read_to_string(dir.path().join("spot.csv")).unwrap();
+    let header: Vec<&str> = series.lines().next().unwrap().split(',').collect();
+    let column = header
+        .iter()
+        .position(|h| *h == "max_temperature_k")
+        .unwrap();
+    let highest = series
+        .lines()
+        .skip(1)
+        .map(|row| row.split(',').nth(column).unwrap().parse::<f64>().unwrap())
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!((peak - highest).abs() <= 0.05, "{line}: series {highest}");
+    // The spot's hottest particle cools after the second track (2599.8 K at most, 2585.9 K at
+    // the end): a summary that gave only the last state would hide the peak.
+    assert!(peak > now + 1.0, "{line}");
+}
