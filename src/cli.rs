@@ -288,7 +288,7 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
         // The deposition's own error indicators, as the run's summary gives the run's.
         let indicators = format!(
             "  deposition's error indicators: energy balance residual {:.2e} relative (M.35); largest overlap {:.3} % of the smaller radius (every step)",
-            report.energy_residual,
+            report.energy_residual.abs(),
             100.0 * report.peak_overlap_ratio
         );
         if !report.settled {
