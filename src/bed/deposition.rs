@@ -17,7 +17,7 @@
 //! The deposition is a pre-run: the laser is off (removed from the model while it runs),
 //! nothing is written, and afterwards the step counter, the clock and the dissipated-energy
 //! bookkeeping are reset, so the scene's `duration_s`, the laser's `start_time_s` and the
-//! output's frames all count from the settled bed. Before the reset it measures its own error
+//! output's frames all count from the settled bed. At each check it measures its own error
 //! indicators ([`DepositionReport::energy_residual`], with what the background damping took
 //! booked as lost, and [`DepositionReport::peak_overlap_ratio`]), which `am-sim` prints.
 //!
@@ -59,12 +59,12 @@ pub struct DepositionReport {
     pub kinetic_energy_ratio: f64,
     /// The guard that stopped the deposition, if one tripped (docs/stability.md).
     pub stopped: Option<GuardTrip>,
-    /// The deposition's mechanical energy balance (M.35) at its end, before the clock restarts,
-    /// relative to its energy scale as a run's is, with what the background damping took
-    /// booked as lost (M.76). Zero until the deposition ends.
+    /// The deposition's mechanical energy balance (M.35) at its last check (its end, before
+    /// the clock restarts), relative to its energy scale as a run's is, with what the
+    /// background damping took booked as lost (M.76). Zero before the first check.
     pub energy_residual: f64,
-    /// The largest overlap of any of the deposition's steps relative to the smaller radius of
-    /// its pair. Zero until the deposition ends.
+    /// The largest overlap of any of the deposition's steps up to its last check, relative to
+    /// the smaller radius of its pair. Zero before the first check.
     pub peak_overlap_ratio: f64,
 }
 
@@ -139,14 +139,14 @@ pub fn settle(
         energy_residual: 0.0,
         peak_overlap_ratio: 0.0,
     };
+    // The factor e^{−Δt/τ} of M.76, and the share 1 − e^{−2Δt/τ} of a particle's kinetic energy
+    // it takes (without the cancellation of 1 − factor²).
+    let decay = settings.damping_time.map(|tau| {
+        let interval = sim.model.dt / tau;
+        (libm::exp(-interval), -libm::expm1(-2.0 * interval))
+    });
     while report.steps < settings.max_steps {
         let chunk = settings.check_every.min(settings.max_steps - report.steps);
-        // The factor e^{−Δt/τ} of M.76, and the share 1 − e^{−2Δt/τ} of a particle's kinetic
-        // energy it takes (without the cancellation of 1 − factor²).
-        let decay = settings.damping_time.map(|tau| {
-            let interval = sim.model.dt / tau;
-            (libm::exp(-interval), -libm::expm1(-2.0 * interval))
-        });
         for _ in 0..chunk {
             sim.step();
             if let Some(trip) = sim.guard_trip() {
@@ -172,9 +172,13 @@ pub fn settle(
         }
         report.steps += chunk;
         report.time = sim.time;
-        // At each check, the energy guard a run applies at its output steps: a blow-up slow
-        // enough to pass the per-step guards stops the deposition too.
-        if let Some(trip) = sim.energy_guard_trip(&sim.diagnostics()) {
+        // At each check, the deposition's error indicators, and the energy guard a run applies
+        // at its output steps: a blow-up slow enough to pass the per-step guards stops the
+        // deposition too. The last check is the deposition's end.
+        let measured = sim.diagnostics();
+        report.energy_residual = measured.energy_residual;
+        report.peak_overlap_ratio = measured.peak_overlap_ratio;
+        if let Some(trip) = sim.energy_guard_trip(&measured) {
             report.stopped = Some(trip);
             hand_back(sim, laser, heat);
             return report;
@@ -188,9 +192,6 @@ pub fn settle(
         }
     }
     hand_back(sim, laser, heat);
-    let measured = sim.diagnostics();
-    report.energy_residual = measured.energy_residual;
-    report.peak_overlap_ratio = measured.peak_overlap_ratio;
     sim.restart_clock();
     report
 }
