@@ -2,6 +2,8 @@
 //! folder, `[deposition]` settles the bed before the run and the run's clock starts on the
 //! settled bed, and an unsettled bed stops the run with an error.
 
+mod common;
+
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -120,12 +122,7 @@ fn the_run_starts_on_the_settled_bed() {
         .lines()
         .find(|l| l.contains("deposition's error indicators"))
         .expect("the deposition's error indicators");
-    let residual: f64 = indicators
-        .split("energy balance residual ")
-        .nth(1)
-        .and_then(|rest| rest.split_whitespace().next())
-        .and_then(|value| value.parse().ok())
-        .expect("a residual");
+    let residual = common::number_after(indicators, "energy balance residual ");
     assert!(residual.abs() < 0.05, "{indicators}");
     let series = std::fs::read_to_string(cwd.path().join("series.csv")).unwrap();
     let rows: Vec<Vec<f64>> = series

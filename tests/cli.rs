@@ -1,5 +1,7 @@
 //! The `am-sim` binary as a user runs it: run, check, refusal to overwrite, bad input.
 
+mod common;
+
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -349,14 +351,10 @@ fn the_summary_gives_the_highest_temperature_now_and_at_the_output_steps() {
         .lines()
         .find(|l| l.contains("thermal: max temperature"))
         .expect("the thermal line");
-    let kelvin = |after: &str| -> f64 {
-        line.split(after)
-            .nth(1)
-            .and_then(|rest| rest.split_whitespace().next())
-            .and_then(|value| value.parse().ok())
-            .unwrap_or_else(|| panic!("no value after {after:?}: {line}"))
-    };
-    let (now, peak) = (kelvin("max temperature "), kelvin("K now, "));
+    let (now, peak) = (
+        common::number_after(line, "max temperature "),
+        common::number_after(line, "K now, "),
+    );
     // The highest of the series column is the peak the summary gives (to its 0.1 K print).
     let series = std::fs::read_to_string(dir.path().join("spot.csv")).unwrap();
     let header: Vec<&str> = series.lines().next().unwrap().split(',').collect();

@@ -145,3 +145,14 @@ pub fn short_track(duration: f64, every: u64) -> String {
         .replace("every_steps = 500", &format!("every_steps = {every}"))
         .replace("series_csv = \"laser_track.csv\"", "")
 }
+
+/// The number that follows `label` in `line` (up to the next whitespace), as am-sim prints its
+/// summaries; panics, naming both, if there is none.
+#[must_use]
+pub fn number_after(line: &str, label: &str) -> f64 {
+    line.split(label)
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|value| value.parse().ok())
+        .unwrap_or_else(|| panic!("no number after {label:?}: {line}"))
+}
