@@ -8,7 +8,7 @@
 use std::time::Instant;
 
 use am_sim::model::Model;
-use am_sim::output::{frame, hdf5::OutputFile};
+use am_sim::output::{SeriesLayout, frame, hdf5::OutputFile};
 use am_sim::scene::Scene;
 use am_sim::simulation::Simulation;
 
@@ -85,7 +85,8 @@ fn main() {
             start.elapsed().as_secs_f64()
         })
         .collect();
-    let mut file = OutputFile::create(&path, true, "bench", true, 0).expect("file");
+    let mut file =
+        OutputFile::create(&path, true, "bench", SeriesLayout::of(&sim), 0).expect("file");
     let fields = sim.model.output.fields.clone();
     let writes: Vec<f64> = (0..15)
         .map(|_| {

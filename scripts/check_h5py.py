@@ -61,7 +61,8 @@ def check_frame(name, g):
     expect = {
         "id": (np.uint64, (n,)), "position": (np.float64, (n, 3)), "velocity": (np.float64, (n, 3)),
         "radius": (np.float64, (n,)), "temperature": (np.float64, (n,)), "melted": (np.uint8, (n,)),
-        "melt_fraction": (np.float64, (n,)), "contacts": (np.uint64, (n,)),
+        "melt_fraction": (np.float64, (n,)), "evaporated_mass": (np.float64, (n,)),
+        "angular_velocity": (np.float64, (n, 3)), "contacts": (np.uint64, (n,)),
         "force": (np.float64, (n, 3)), "bonds": (np.uint64, None),
         "bond_overlap": (np.float64, None), "bond_force": (np.float64, None),
     }
@@ -74,9 +75,11 @@ def check_frame(name, g):
         r = g["restart"]
         check("force" in r and r["force"].shape == (n, 3), f"{where}/restart: no force [N, 3]")
         check("bonded_ids" in r, f"{where}/restart: no bonded_ids")
-    for ds_name in ("position", "velocity", "radius", "temperature"):
+    for ds_name in ("position", "velocity", "radius", "temperature", "evaporated_mass"):
         if ds_name in g:
             check(np.all(np.isfinite(g[ds_name][...])), f"{where}/{ds_name}: non-finite values")
+    if "evaporated_mass" in g:
+        check(np.all(g["evaporated_mass"][...] >= 0.0), f"{where}/evaporated_mass: negative values")
     b = g["bonds"].shape[0] if "bonds" in g else 0
     for ds_name, (dtype, shape) in expect.items():
         if ds_name not in g:
@@ -103,6 +106,7 @@ def check_frame(name, g):
     return {
         "name": name, "time": float(g.attrs["time"]), "step": int(g.attrs["step"]),
         "n_points": n, "n_bonds": b, "has_bonds": "bonds" in g,
+        "evaporated_mass": float(g["evaporated_mass"][...].sum()) if "evaporated_mass" in g else None,
         "ranges": {k: rng(k) for k in ("radius", "temperature", "melted", "id")},
     }
 
@@ -135,9 +139,15 @@ def check_series(f, frames):
         check(s["time_s"][i] == fr["time"], f"/series/time_s at step {fr['step']} != frame time")
         if fr["has_bonds"]:
             check(s["bonds"][i] == fr["n_bonds"], f"/series/bonds at step {fr['step']} = {s['bonds'][i]}, frame has {fr['n_bonds']}")
+        # The vapour's mass in the series is the frame's sum, with the mass of removed particles
+        # (none in the checked runs); the two sums add in different orders: 1e-12 relative.
+        if fr["evaporated_mass"] is not None and "evaporated_mass_kg" in s and s["removed_particles"][i] == 0:
+            series_mass = float(s["evaporated_mass_kg"][i])
+            check(abs(series_mass - fr["evaporated_mass"]) <= 1e-12 * max(series_mass, 1e-300),
+                  f"/series/evaporated_mass_kg at step {fr['step']} = {series_mass}, frame sums {fr['evaporated_mass']}")
     check(shared > 0, "no frame step appears in /series")
     print(f"series: {rows} rows, {len(s)} columns ({', '.join(s)}); {shared} rows at frame steps")
-    show = [c for c in ("time_s", "kinetic_energy_j", "bonds", "max_temperature_k", "laser_energy_j") if c in s]
+    show = [c for c in ("time_s", "kinetic_energy_j", "bonds", "max_temperature_k", "laser_energy_j", "evaporated_mass_kg") if c in s]
     print("  " + " ".join(f"{c:>18}" for c in show))
     for i in list(range(min(rows, 3))) + ([rows - 1] if rows > 3 else []):
         print("  " + " ".join(f"{s[c][i]:>18.6g}" for c in show))

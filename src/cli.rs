@@ -527,11 +527,25 @@ fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
         );
         // Since the start of this run (a resumed run starts with the energies it had), particle
         // by particle (`ThermalDiagnostics::stored`).
+        if let Some(e) = t1.evaporation {
+            say!(
+                "  evaporation: {:.4e} J carried off by {:.4e} kg of vapour from {} particles, at most {:.2} % of one particle's mass (M.80; the particles keep their mass)",
+                e.heat,
+                e.mass,
+                e.particles,
+                100.0 * e.max_fraction
+            );
+        }
         let stored = t1.stored - t0.stored;
-        let supplied =
-            (t1.laser_energy - t0.laser_energy) + (t1.boundary_energy - t0.boundary_energy);
+        // Laser and boundaries, less what the vapour carried off.
+        let supplied = t1.supplied_since(&t0);
+        let net = if t1.evaporation.is_some() {
+            "supplied less evaporated"
+        } else {
+            "supplied"
+        };
         say!(
-            "  heat balance: stored {stored:+.6e} J vs supplied {supplied:+.6e} J (residual {:.2e} relative); dt over the smallest thermal time constant {:.3e} at most (at output steps), {} substeps per step at most",
+            "  heat balance: stored {stored:+.6e} J vs {net} {supplied:+.6e} J (residual {:.2e} relative); dt over the smallest thermal time constant {:.3e} at most (at output steps), {} substeps per step at most",
             t1.heat_residual.abs(),
             outcome.peak_thermal_ratio.max(t1.time_step_ratio),
             sim.thermal.as_ref().map_or(0, |t| t.max_substeps)

@@ -18,7 +18,7 @@ use crate::scene::{
     Axis, ConductionConfig, CriterionConfig, LaserConfig, MeltingRule, PathConfig, Scene,
     SceneError, ThermalConfig, Violation, validate::lattice_sites,
 };
-use crate::thermal::{ConductionModel, InitialRegion, ThermalMaterial, ThermalModel};
+use crate::thermal::{ConductionModel, InitialRegion, ThermalMaterial, ThermalModel, Vaporization};
 
 /// Elastic data of one material (SI).
 #[derive(Debug, Clone, PartialEq)]
@@ -109,6 +109,7 @@ impl OutputSettings {
             Needs::Nothing => true,
             Needs::Bond => scene.bond.is_some(),
             Needs::Thermal => scene.thermal.is_some(),
+            Needs::Evaporation => scene.has_evaporation(),
             Needs::Rotation => scene.contact.has_rotation(),
         };
         let fields = match out.and_then(|o| o.fields.as_ref()) {
@@ -295,6 +296,16 @@ impl Model {
     #[inline]
     pub fn wall_params(&self, wall: usize, material: u16) -> &NormalParams {
         &self.wall_params[wall * self.materials.len() + usize::from(material)]
+    }
+
+    /// L_v of `material` [J/kg] (M.80): `+∞` for a material that does not evaporate (or without
+    /// `[thermal]`), so that heat over it weighs nothing.
+    #[must_use]
+    pub fn latent_heat_of_vaporization(&self, material: u16) -> f64 {
+        self.thermal
+            .as_ref()
+            .and_then(|t| t.materials[usize::from(material)].vaporization)
+            .map_or(f64::INFINITY, |v| v.latent_heat)
     }
 
     /// True when the scene has a `[bond]` section.
@@ -550,6 +561,13 @@ fn thermal_model(scene: &Scene, config: &ThermalConfig) -> ThermalModel {
                 latent_heat: m.latent_heat_j_kg.unwrap_or(0.0),
                 emissivity: m.emissivity.unwrap_or(0.0),
                 absorptivity: m.absorptivity.unwrap_or(0.0),
+                // Validation requires both keys or neither.
+                vaporization: m.boiling_point_k.zip(m.latent_heat_vaporization_j_kg).map(
+                    |(boiling_point, latent_heat)| Vaporization {
+                        boiling_point,
+                        latent_heat,
+                    },
+                ),
             })
             .collect(),
         conduction: match config.conduction {

@@ -60,7 +60,8 @@ fn an_existing_output_file_is_refused_and_kept() {
     assert_eq!(last_step(dir.path()), 200);
 }
 
-/// Positions, velocities, temperatures (as bits) and bonds of a file's last frame.
+/// Positions, velocities, enthalpies, the heat evaporated (as bits) and bonds of a file's last
+/// frame.
 fn fingerprint(path: &Path) -> (Vec<u64>, Vec<(u64, u64)>, u64) {
     let saved = read_last_frame(path).unwrap();
     let mut bits: Vec<u64> = saved
@@ -70,14 +71,12 @@ fn fingerprint(path: &Path) -> (Vec<u64>, Vec<(u64, u64)>, u64) {
         .flat_map(|v| v.to_array())
         .map(f64::to_bits)
         .collect();
+    let thermal = saved.state.thermal.as_ref().unwrap();
     bits.extend(
-        saved
-            .state
-            .thermal
-            .as_ref()
-            .unwrap()
+        thermal
             .enthalpy
             .iter()
+            .chain(thermal.evaporated.iter().flatten())
             .map(|e| e.to_bits()),
     );
     let mut bonds = saved.state.bonded.clone();
@@ -113,6 +112,19 @@ fn a_run_of_2t_equals_t_plus_a_restart_of_t_bit_for_bit() {
         "bonds formed, so the restart carried bond states"
     );
     assert_eq!(a, b, "2T and T + restart T differ");
+    // laser_track's particles boil (M.80) before the restart point: the restart carried the
+    // heat their vapour had taken.
+    let file = hdf5::File::open(dir.path().join("half.h5")).unwrap();
+    let evaporated: Vec<f64> = file
+        .dataset("series/evaporated_heat_j")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    // Row 10 is step 5000, where the second run resumed.
+    assert!(
+        evaporated[10] > 0.0 && evaporated[20] > evaporated[10],
+        "nothing evaporated before or after the restart point: {evaporated:?}"
+    );
     // Frames and series continue in the restarted file without gaps or duplicates.
     let file = hdf5::File::open(dir.path().join("half.h5")).unwrap();
     let steps: Vec<u64> = file.dataset("series/step").unwrap().read_raw().unwrap();

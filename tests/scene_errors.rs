@@ -318,6 +318,42 @@ fn thermal_base() -> String {
 
 /// Thermal and laser cases, applied to [`thermal_base`].
 const THERMAL_CASES: &[(&str, &str, &[&str])] = &[
+    // Evaporation (M.80): both keys or neither, above the melting point and the start.
+    (
+        "melting_point_k = 1700",
+        "melting_point_k = 1700\nboiling_point_k = 1600\nlatent_heat_vaporization_j_kg = 6e6",
+        &["materials.steel.boiling_point_k = 1600: must be above melting_point_k (1700 K)"],
+    ),
+    (
+        "melting_point_k = 1700",
+        "melting_point_k = 1700\nboiling_point_k = 3000",
+        &["materials.steel.latent_heat_vaporization_j_kg = missing: needed by boiling_point_k"],
+    ),
+    (
+        "melting_point_k = 1700",
+        "melting_point_k = 1700\nlatent_heat_vaporization_j_kg = 6e6",
+        &["materials.steel.latent_heat_vaporization_j_kg = 6000000: needs boiling_point_k"],
+    ),
+    (
+        "melting_point_k = 1700",
+        "melting_point_k = 1700\nboiling_point_k = 3000\nlatent_heat_vaporization_j_kg = -1",
+        &["materials.steel.latent_heat_vaporization_j_kg = -1: must be > 0"],
+    ),
+    (
+        "melting_point_k = 1700",
+        "melting_point_k = 1700\nboiling_point_k = 250\nlatent_heat_vaporization_j_kg = 6e6",
+        &[
+            "materials.steel.boiling_point_k = 250: must be above melting_point_k",
+            "thermal.initial_temperature_k = 300: is above materials.steel.boiling_point_k (250 K)",
+        ],
+    ),
+    (
+        "every_steps = 10",
+        "every_steps = 10\nfields = [\"temperature\", \"evaporated_mass\"]",
+        &[
+            "output.fields[1] = \"evaporated_mass\": needs a [thermal] section and a material with boiling_point_k",
+        ],
+    ),
     (
         "conduction = \"batchelor_obrien\"",
         "conduction = \"batchelor\"",

@@ -462,3 +462,99 @@ fn with_a_deposition_the_regions_apply_when_the_run_starts() {
     }
     assert!(heated > 50 && heated < n / 2, "{heated} of {n}");
 }
+
+#[test]
+fn a_sphere_heated_past_its_boiling_point_stays_there_and_its_vapour_carries_off_the_rest() {
+    // The sphere of the plateau test with a boiling point (M.80): solid heating, the melting
+    // plateau, liquid heating, then T = T_b for good while the excess leaves with the vapour.
+    let (latent, boiling, vaporization) = (2.7e5, 2500.0, 6.0e6);
+    let laser = "[laser]\npower_w = 5.0\nspot_radius_m = 2e-4\n[laser.path]\nkind = \"stationary\"\nposition_m = [0.0, 0.0]\nduration_s = 1.0";
+    let dt = 2e-6;
+    let material = format!(
+        "latent_heat_j_kg = {latent:e}\nabsorptivity = 0.5\nboiling_point_k = {boiling:e}\nlatent_heat_vaporization_j_kg = {vaporization:e}"
+    );
+    let mut sim = one_sphere(
+        dt,
+        0.1,
+        "initial_temperature_k = 300\nconduction = \"none\"",
+        &material,
+        laser,
+    );
+    let c = capacity(R);
+    let mass = c / CP;
+    let start = sim.diagnostics();
+    sim.step();
+    let power = sim.thermal.as_ref().unwrap().laser_power[0];
+    assert!(power > 0.0 && power <= 0.5 * 5.0, "absorbed {power} W");
+    // Closed form: the sphere reaches T_b once P t = C (T_b − T_0) + m L.
+    let boiling_at = (c * (boiling - 300.0) + mass * latent) / power;
+    assert!(
+        boiling_at < 0.5 * 0.1,
+        "boils at {boiling_at} s, within the run"
+    );
+    let mut hottest: f64 = 0.0;
+    let mut first_at_boiling = None;
+    while sim.step < sim.model.steps {
+        sim.step();
+        let t = temperature(&sim, 0);
+        hottest = hottest.max(t);
+        if t >= boiling * (1.0 - 1e-12) && first_at_boiling.is_none() {
+            first_at_boiling = Some(sim.time);
+        }
+    }
+    let first_at_boiling = first_at_boiling.expect("reached the boiling point");
+    // T(E_b) = (C T_b + m L − m L) / C: T_b to a few ulps, never above it.
+    assert!(
+        hottest <= boiling * (1.0 + 4.0 * f64::EPSILON),
+        "hottest {hottest} K"
+    );
+    assert!((temperature(&sim, 0) / boiling - 1.0).abs() < 4.0 * f64::EPSILON);
+    // The step grid resolves the onset to one step.
+    assert!(
+        (first_at_boiling - boiling_at).abs() <= dt * (1.0 + 1e-9),
+        "boiled at {first_at_boiling} s, closed form {boiling_at} s"
+    );
+    // Everything absorbed after the onset left with the vapour: P (t − t_b), to the one step
+    // in which the onset falls (at most P dt) and round-off.
+    let end = sim.diagnostics();
+    let thermal = end.thermal.expect("thermal");
+    let evaporation = thermal.evaporation.expect("the material evaporates");
+    let expected_heat = power * (sim.time - boiling_at);
+    eprintln!(
+        "boiled at {first_at_boiling:.6e} s (closed form {boiling_at:.6e} s); carried off {:.6e} J (P (t − t_b) = {expected_heat:.6e} J), {:.4e} kg; heat residual {:.1e}",
+        evaporation.heat, evaporation.mass, thermal.heat_residual
+    );
+    assert!(
+        (evaporation.heat - expected_heat).abs() <= power * dt * (1.0 + 1e-6),
+        "{} J vs {expected_heat} J",
+        evaporation.heat
+    );
+    // Mass: heat over L_v; one particle, so its share is the whole mass fraction.
+    assert!((evaporation.mass / (evaporation.heat / vaporization) - 1.0).abs() < 1e-12);
+    assert!((evaporation.max_fraction / (evaporation.mass / mass) - 1.0).abs() < 1e-12);
+    assert_eq!(evaporation.particles, 1);
+    // The balance books the vapour's heat: laser in, enthalpy stored, vapour out.
+    assert!(
+        thermal.heat_residual.abs() < 1e-12,
+        "{}",
+        thermal.heat_residual
+    );
+    let stored = thermal.stored - start.thermal.unwrap().stored;
+    assert!(
+        (stored + evaporation.heat - thermal.laser_energy).abs() < 1e-12 * thermal.laser_energy
+    );
+
+    // Without a boiling point the same heating runs past T_b: the bound is the model's doing.
+    let mut unbounded = one_sphere(
+        dt,
+        0.1,
+        "initial_temperature_k = 300\nconduction = \"none\"",
+        &format!("latent_heat_j_kg = {latent:e}\nabsorptivity = 0.5"),
+        laser,
+    );
+    while unbounded.step < unbounded.model.steps {
+        unbounded.step();
+    }
+    assert!(unbounded.thermal.as_ref().unwrap().evaporation.is_none());
+    assert!(temperature(&unbounded, 0) > 1.5 * boiling);
+}

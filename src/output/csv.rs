@@ -5,7 +5,7 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use super::{OutputError, SeriesValue, series_columns, series_row};
+use super::{OutputError, SeriesLayout, SeriesValue, series_columns, series_row};
 use crate::simulation::Diagnostics;
 
 /// Writes the time series CSV.
@@ -16,11 +16,11 @@ pub struct SeriesWriter {
 }
 
 impl SeriesWriter {
-    /// Creates the file and writes the header; `thermal` adds the thermal columns.
+    /// Creates the file and writes the header; `layout` names the optional column groups.
     ///
     /// # Errors
     /// [`OutputError::Exists`] if the file exists and `overwrite` is false; I/O errors.
-    pub fn create(path: &Path, overwrite: bool, thermal: bool) -> Result<Self, OutputError> {
+    pub fn create(path: &Path, overwrite: bool, layout: SeriesLayout) -> Result<Self, OutputError> {
         if overwrite && path.exists() {
             // Unlink rather than truncate, as for the HDF5 file: a reader keeps the old rows.
             std::fs::remove_file(path).map_err(|source| OutputError::Io {
@@ -42,7 +42,7 @@ impl SeriesWriter {
             path: path.to_owned(),
             out: BufWriter::new(file),
         };
-        let header: Vec<&str> = series_columns(thermal).iter().map(|c| c.name).collect();
+        let header: Vec<&str> = series_columns(layout).iter().map(|c| c.name).collect();
         writer.line(&header.join(","))?;
         Ok(writer)
     }
@@ -51,9 +51,9 @@ impl SeriesWriter {
     ///
     /// # Errors
     /// I/O errors.
-    pub fn append(path: &Path, thermal: bool, step: u64) -> Result<Self, OutputError> {
+    pub fn append(path: &Path, layout: SeriesLayout, step: u64) -> Result<Self, OutputError> {
         if !path.exists() {
-            return Self::create(path, false, thermal);
+            return Self::create(path, false, layout);
         }
         let io = |source| OutputError::Io {
             path: path.to_owned(),

@@ -81,6 +81,8 @@ pub enum OptionalField {
     Melted,
     /// Share of the latent heat taken [0, 1].
     MeltFraction,
+    /// Mass the particle's vapour has carried off \[kg\] (M.80; the particle keeps its mass).
+    EvaporatedMass,
     /// Angular velocity [rad/s] (scenes with friction or rolling resistance).
     AngularVelocity,
 }
@@ -94,19 +96,22 @@ pub enum Needs {
     Bond,
     /// A `[thermal]` section.
     Thermal,
+    /// `[thermal]` and a material with `boiling_point_k`.
+    Evaporation,
     /// `contact.friction_coefficient` or `contact.rolling_friction_coefficient` (rotation).
     Rotation,
 }
 
 impl OptionalField {
     /// Every optional field, in the order they are written.
-    pub const ALL: [Self; 9] = [
+    pub const ALL: [Self; 10] = [
         Self::Force,
         Self::Contacts,
         Self::AngularVelocity,
         Self::Temperature,
         Self::Melted,
         Self::MeltFraction,
+        Self::EvaporatedMass,
         Self::Bonds,
         Self::BondOverlap,
         Self::BondForce,
@@ -124,6 +129,7 @@ impl OptionalField {
             Self::Temperature => "temperature",
             Self::Melted => "melted",
             Self::MeltFraction => "melt_fraction",
+            Self::EvaporatedMass => "evaporated_mass",
             Self::AngularVelocity => "angular_velocity",
         }
     }
@@ -141,6 +147,7 @@ impl OptionalField {
             Self::Force | Self::Contacts => Needs::Nothing,
             Self::Bonds | Self::BondOverlap | Self::BondForce => Needs::Bond,
             Self::Temperature | Self::Melted | Self::MeltFraction => Needs::Thermal,
+            Self::EvaporatedMass => Needs::Evaporation,
             Self::AngularVelocity => Needs::Rotation,
         }
     }
@@ -226,6 +233,18 @@ pub fn capture(sim: &Simulation, selected: &[OptionalField]) -> Frame {
                 name: "melt_fraction",
                 unit: "1",
                 values: Values::F64(fraction),
+            });
+        }
+        if let (Some(evaporation), true) = (&t.evaporation, has(OptionalField::EvaporatedMass)) {
+            let mass = (0..p.len())
+                .map(|k| {
+                    evaporation.evaporated[k] / sim.model.latent_heat_of_vaporization(p.material[k])
+                })
+                .collect();
+            points.push(Field {
+                name: "evaporated_mass",
+                unit: "kg",
+                values: Values::F64(mass),
             });
         }
     }

@@ -27,7 +27,7 @@ use ndarray::{ArrayView1, ArrayView2};
 
 use super::frame::{Frame, Values};
 use super::xdmf::{self, FrameMeta, POINT_INDEX};
-use super::{OutputError, SeriesColumn, SeriesKind, SeriesValue, series_columns};
+use super::{OutputError, SeriesColumn, SeriesKind, SeriesLayout, SeriesValue, series_columns};
 use crate::laser::Snapshot;
 use crate::simulation::{Removed, RestartState, RotationRestart, ThermalRestart};
 
@@ -82,7 +82,7 @@ impl<T> Context<T> for hdf5::Result<T> {
 
 impl OutputFile {
     /// Creates the file (refusing to replace an existing one unless `overwrite`), with the root
-    /// attributes, the series columns (thermal ones if `thermal`) and an empty XDMF file.
+    /// attributes, the series columns (the optional groups of `layout`) and an empty XDMF file.
     ///
     /// # Errors
     /// [`OutputError::Exists`], HDF5 and I/O errors.
@@ -90,7 +90,7 @@ impl OutputFile {
         path: &Path,
         overwrite: bool,
         scene_text: &str,
-        thermal: bool,
+        layout: SeriesLayout,
         deflate: u8,
     ) -> Result<Self> {
         if path.exists() {
@@ -116,7 +116,7 @@ impl OutputFile {
             string_attr(&file, "scene", scene_text)?;
             file.create_group("frames")?;
             let series = file.create_group("series")?;
-            for c in series_columns(thermal) {
+            for c in series_columns(layout) {
                 let builder = series.new_dataset_builder().chunk(1024);
                 let ds = match c.kind {
                     SeriesKind::F64 => builder.empty::<f64>(),
@@ -140,7 +140,7 @@ impl OutputFile {
             deflate,
             frames: Vec::new(),
             point_index_len: 0,
-            columns: series_columns(thermal),
+            columns: series_columns(layout),
             xdmf_written: None,
         };
         out.write_xdmf()?;
@@ -151,7 +151,7 @@ impl OutputFile {
     ///
     /// # Errors
     /// HDF5 errors, or [`OutputError::Format`] if it is not an am-sim file.
-    pub fn open_append(path: &Path, thermal: bool, deflate: u8, step: u64) -> Result<Self> {
+    pub fn open_append(path: &Path, layout: SeriesLayout, deflate: u8, step: u64) -> Result<Self> {
         let file = File::open_rw(path).on(path)?;
         check_format(&file, path)?;
         let frames_group = file.group("frames").on(path)?;
@@ -178,7 +178,7 @@ impl OutputFile {
         let series = file.group("series").on(path)?;
         let steps: Vec<u64> = series.dataset("step").and_then(|d| d.read_raw()).on(path)?;
         let keep = steps.iter().take_while(|s| **s <= step).count();
-        for c in series_columns(thermal) {
+        for c in series_columns(layout) {
             series
                 .dataset(c.name)
                 .and_then(|d| d.resize(keep))
@@ -192,7 +192,7 @@ impl OutputFile {
             deflate,
             frames,
             point_index_len,
-            columns: series_columns(thermal),
+            columns: series_columns(layout),
             xdmf_written: None,
         })
     }
@@ -433,6 +433,8 @@ fn write_restart(group: &Group, state: &RestartState) -> hdf5::Result<()> {
             r.enthalpy,
             r.laser_energy,
             r.boundary_energy,
+            r.evaporated,
+            r.evaporated_mass,
         ];
         plain("removed", ArrayView1::from(&removed))?;
     }
@@ -451,6 +453,9 @@ fn write_restart(group: &Group, state: &RestartState) -> hdf5::Result<()> {
         plain("laser_power", ArrayView1::from(&t.laser_power))?;
         plain("laser_energy", ArrayView1::from(&t.laser_energy))?;
         plain("boundary_energy", ArrayView1::from(&t.boundary_energy))?;
+        if let Some(evaporated) = &t.evaporated {
+            plain("evaporated_heat", ArrayView1::from(evaporated))?;
+        }
         group
             .new_attr::<u32>()
             .create("max_substeps")?
@@ -564,6 +569,11 @@ pub fn read_last_frame(path: &Path) -> Result<SavedRun> {
                 laser_power: restart.dataset("laser_power")?.read_raw()?,
                 laser_energy: restart.dataset("laser_energy")?.read_raw()?,
                 boundary_energy: restart.dataset("boundary_energy")?.read_raw()?,
+                evaporated: if restart.link_exists("evaporated_heat") {
+                    Some(restart.dataset("evaporated_heat")?.read_raw()?)
+                } else {
+                    None
+                },
                 max_substeps: restart.attr("max_substeps")?.read_scalar()?,
             })
         } else {
@@ -623,6 +633,9 @@ pub fn read_last_frame(path: &Path) -> Result<SavedRun> {
                         enthalpy_change: 0.0,
                         laser_energy: r[4],
                         boundary_energy: r[5],
+                        // Files written before evaporation was modelled hold six entries.
+                        evaporated: r.get(6).copied().unwrap_or(0.0),
+                        evaporated_mass: r.get(7).copied().unwrap_or(0.0),
                     }
                 } else {
                     Removed::default()

@@ -102,12 +102,44 @@ pub const THERMAL_COLUMNS: [SeriesColumn; 8] = [
     column("heat_residual", "1", SeriesKind::F64),
 ];
 
+/// Columns added for scenes with a material that evaporates (M.80; and only for them).
+pub const EVAPORATION_COLUMNS: [SeriesColumn; 2] = [
+    column("evaporated_heat_j", "J", SeriesKind::F64),
+    column("evaporated_mass_kg", "kg", SeriesKind::F64),
+];
+
+/// Which of the optional column groups a run's series has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SeriesLayout {
+    /// [`THERMAL_COLUMNS`]: the scene has `[thermal]`.
+    pub thermal: bool,
+    /// [`EVAPORATION_COLUMNS`]: and a material with a boiling point.
+    pub evaporation: bool,
+}
+
+impl SeriesLayout {
+    /// The layout of `sim`'s series.
+    #[must_use]
+    pub fn of(sim: &Simulation) -> Self {
+        Self {
+            thermal: sim.thermal.is_some(),
+            evaporation: sim
+                .thermal
+                .as_ref()
+                .is_some_and(|t| t.evaporation.is_some()),
+        }
+    }
+}
+
 /// The columns of a run's series.
 #[must_use]
-pub fn series_columns(thermal: bool) -> Vec<SeriesColumn> {
+pub fn series_columns(layout: SeriesLayout) -> Vec<SeriesColumn> {
     let mut columns = SERIES_COLUMNS.to_vec();
-    if thermal {
+    if layout.thermal {
         columns.extend(THERMAL_COLUMNS);
+        if layout.evaporation {
+            columns.extend(EVAPORATION_COLUMNS);
+        }
     }
     columns
 }
@@ -156,6 +188,9 @@ pub fn series_row(d: &Diagnostics, wall_time_s: f64) -> Vec<SeriesValue> {
             F64(t.time_step_ratio),
             F64(t.heat_residual),
         ]);
+        if let Some(e) = t.evaporation {
+            row.extend([F64(e.heat), F64(e.mass)]);
+        }
     }
     row
 }
@@ -186,13 +221,13 @@ impl Writers {
         restart_from: Option<&Path>,
     ) -> Result<Self, OutputError> {
         let settings = &sim.model.output;
-        let thermal = sim.thermal.is_some();
+        let layout = SeriesLayout::of(sim);
         // The HDF5 file first: if it cannot be opened, the CSV has not been touched.
         #[cfg(feature = "hdf5")]
         let hdf5 = match (restart_from, &settings.file) {
             (Some(path), _) => Some(hdf5::OutputFile::open_append(
                 path,
-                thermal,
+                layout,
                 settings.deflate,
                 sim.step,
             )?),
@@ -200,7 +235,7 @@ impl Writers {
                 path,
                 overwrite,
                 scene_text,
-                thermal,
+                layout,
                 settings.deflate,
             )?),
             (None, None) => None,
@@ -209,9 +244,9 @@ impl Writers {
         let _ = scene_text;
         let csv = match &settings.series_csv {
             Some(path) if restart_from.is_some() => {
-                Some(csv::SeriesWriter::append(path, thermal, sim.step)?)
+                Some(csv::SeriesWriter::append(path, layout, sim.step)?)
             }
-            Some(path) => Some(csv::SeriesWriter::create(path, overwrite, thermal)?),
+            Some(path) => Some(csv::SeriesWriter::create(path, overwrite, layout)?),
             None => None,
         };
         let resumed = restart_from.map(|_| sim.step);

@@ -174,6 +174,13 @@ pub struct MaterialConfig {
     pub melting_point_k: Option<f64>,
     /// Latent heat of fusion L [J/kg], `≥ 0`; default 0 (melting takes no heat).
     pub latent_heat_j_kg: Option<f64>,
+    /// Boiling point T_b \[K\], above `melting_point_k`: the material evaporates there (M.80), so
+    /// its particles never pass it; absent: no evaporation, and no bound on the temperature.
+    /// Needs `latent_heat_vaporization_j_kg`.
+    pub boiling_point_k: Option<f64>,
+    /// Latent heat of vaporisation L_v [J/kg], `> 0`: the mass the vapour carries off per joule
+    /// (reported, not taken from the particle). Needs `boiling_point_k`.
+    pub latent_heat_vaporization_j_kg: Option<f64>,
     /// Emissivity in `[0, 1]`; needed with `[thermal.radiation]`.
     pub emissivity: Option<f64>,
     /// Laser absorptivity in `[0, 1]`; needed with `[laser]`.
@@ -477,6 +484,12 @@ pub struct OutputConfig {
 }
 
 impl Scene {
+    /// True when the scene has `[thermal]` and a material with a boiling point (M.80).
+    #[must_use]
+    pub fn has_evaporation(&self) -> bool {
+        self.thermal.is_some() && self.materials.values().any(|m| m.boiling_point_k.is_some())
+    }
+
     /// Reads, parses and validates a scene file.
     ///
     /// # Errors

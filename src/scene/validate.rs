@@ -573,6 +573,57 @@ fn validate_thermal(c: &mut Checker, scene: &Scene) {
         if let Some(l) = m.latent_heat_j_kg {
             c.non_negative(&key("latent_heat_j_kg"), l);
         }
+        // Evaporation (M.80): both keys or neither; the boiling point above the melting point and
+        // the temperatures the run starts from.
+        match (m.boiling_point_k, m.latent_heat_vaporization_j_kg) {
+            (Some(boiling), latent) => {
+                c.positive(&key("boiling_point_k"), boiling);
+                let melting = m.melting_point_k.unwrap_or(0.0);
+                if boiling.is_finite() && boiling <= melting {
+                    c.fail(
+                        key("boiling_point_k"),
+                        boiling,
+                        format!("must be above melting_point_k ({melting} K)"),
+                    );
+                }
+                let starts = std::iter::once((
+                    "thermal.initial_temperature_k".to_string(),
+                    thermal.initial_temperature_k,
+                ))
+                .chain(thermal.initial_region.iter().enumerate().map(|(k, r)| {
+                    (
+                        format!("thermal.initial_region[{k}].temperature_k"),
+                        r.temperature_k,
+                    )
+                }));
+                for (start_key, start) in starts {
+                    if boiling.is_finite() && start > boiling {
+                        c.fail(
+                            start_key,
+                            start,
+                            format!(
+                                "is above {} ({boiling} K): the run would start by evaporating",
+                                key("boiling_point_k")
+                            ),
+                        );
+                    }
+                }
+                match latent {
+                    Some(l) => c.positive(&key("latent_heat_vaporization_j_kg"), l),
+                    None => c.fail(
+                        key("latent_heat_vaporization_j_kg"),
+                        "missing",
+                        "needed by boiling_point_k (the evaporated mass is the heat carried off over it)",
+                    ),
+                }
+            }
+            (None, Some(l)) => c.fail(
+                key("latent_heat_vaporization_j_kg"),
+                l,
+                "needs boiling_point_k (where the material evaporates)",
+            ),
+            (None, None) => {}
+        }
         let fraction =
             |c: &mut Checker, field: &str, value: Option<f64>, needed: bool, why: &str| match value
             {
@@ -741,6 +792,11 @@ fn validate_output(c: &mut Checker, scene: &Scene, out: &super::OutputConfig) {
                 Needs::Thermal if scene.thermal.is_none() => {
                     c.fail(key, format!("\"{name}\""), "needs a [thermal] section")
                 }
+                Needs::Evaporation if !scene.has_evaporation() => c.fail(
+                    key,
+                    format!("\"{name}\""),
+                    "needs a [thermal] section and a material with boiling_point_k",
+                ),
                 Needs::Rotation if !scene.contact.has_rotation() => c.fail(
                     key,
                     format!("\"{name}\""),

@@ -139,6 +139,39 @@ pub struct ThermalDiagnostics {
     pub stored: f64,
     /// `½ Σ |E_i − E_i(start)|` \[J\]: the heat that changed hands since the start of the run.
     pub exchanged: f64,
+    /// With a material that evaporates (M.80): what the vapour has carried off since the start.
+    pub evaporation: Option<EvaporationDiagnostics>,
+}
+
+/// What evaporation has carried off since the start (M.80), removed particles included.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct EvaporationDiagnostics {
+    /// Heat \[J\].
+    pub heat: f64,
+    /// Mass \[kg\]: the heat over each material's latent heat of vaporisation. The particles keep
+    /// their mass (docs/model.md section 26); this says how much a real bed would have lost.
+    pub mass: f64,
+    /// The largest share of one particle's mass evaporated (of those still in the domain).
+    pub max_fraction: f64,
+    /// Particles that have evaporated anything (of those still in the domain).
+    pub particles: usize,
+}
+
+impl ThermalDiagnostics {
+    /// Heat carried off by evaporation since the start \[J\]; 0 without it.
+    #[must_use]
+    pub fn evaporated(&self) -> f64 {
+        self.evaporation.map_or(0.0, |e| e.heat)
+    }
+
+    /// The net heat that entered the particles since `start` \[J\]: laser and boundaries, less
+    /// what the vapour carried off (M.48, M.80). The heat balance holds it equal to the heat
+    /// stored.
+    #[must_use]
+    pub fn supplied_since(&self, start: &Self) -> f64 {
+        (self.laser_energy - start.laser_energy) + (self.boundary_energy - start.boundary_energy)
+            - (self.evaporated() - start.evaporated())
+    }
 }
 
 impl Diagnostics {
@@ -217,6 +250,21 @@ impl Simulation {
                 heat_residual: 0.0,
                 stored: stored + self.removed.enthalpy_change,
                 exchanged,
+                evaporation: t.evaporation.as_ref().map(|e| {
+                    let mut d = EvaporationDiagnostics {
+                        heat: self.removed.evaporated,
+                        mass: self.removed.evaporated_mass,
+                        ..EvaporationDiagnostics::default()
+                    };
+                    for (k, &heat) in e.evaporated.iter().enumerate() {
+                        let mass = heat / self.model.latent_heat_of_vaporization(p.material[k]);
+                        d.heat += heat;
+                        d.mass += mass;
+                        d.max_fraction = d.max_fraction.max(mass / p.mass[k]);
+                        d.particles += usize::from(heat > 0.0);
+                    }
+                    d
+                }),
             }
         });
         d.peak_overlap_ratio = self.peak_overlap_ratio.max(d.max_overlap_ratio);
@@ -251,14 +299,14 @@ impl Simulation {
         d.energy_residual = created / scale;
         if let (Some(t), Some(t0)) = (&mut d.thermal, &start.thermal) {
             let stored = t.stored - t0.stored;
-            let supplied =
-                (t.laser_energy - t0.laser_energy) + (t.boundary_energy - t0.boundary_energy);
+            let supplied = t.supplied_since(t0);
             // The heat supplied, stored or moved between particles: conduction alone supplies
             // and stores nothing, and its balance is measured against what it moved.
             let scale = t
                 .laser_energy
                 .abs()
                 .max(t.boundary_energy.abs())
+                .max(t.evaporated())
                 .max(stored.abs())
                 .max(t.exchanged)
                 .max(t0.enthalpy.abs() * f64::EPSILON);

@@ -120,6 +120,10 @@ pub struct Removed {
     pub laser_energy: f64,
     /// The boundary heat they had received.
     pub boundary_energy: f64,
+    /// The heat their vapour had carried off (M.80) \[J\].
+    pub evaporated: f64,
+    /// The mass it weighs \[kg\] (M.80).
+    pub evaporated_mass: f64,
 }
 
 /// Energies at the start of a run (t = 0, or the step a resumed run starts from) \[J\].
@@ -279,6 +283,12 @@ impl Simulation {
                 removed.enthalpy_change += t.enthalpy[k] - t.start_enthalpy[k];
                 removed.laser_energy += t.laser_energy[k];
                 removed.boundary_energy += t.boundary_energy[k];
+                if let Some(evaporation) = &t.evaporation {
+                    let heat = evaporation.evaporated[k];
+                    removed.evaporated += heat;
+                    removed.evaporated_mass +=
+                        heat / self.model.latent_heat_of_vaporization(p.material[k]);
+                }
             }
         }
         if keep.iter().all(|k| *k) {

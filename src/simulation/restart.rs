@@ -69,6 +69,9 @@ pub struct ThermalRestart {
     pub laser_energy: Vec<f64>,
     /// Boundary heat so far, per particle \[J\].
     pub boundary_energy: Vec<f64>,
+    /// Heat carried off by evaporation so far, per particle \[J\]: with a material that
+    /// evaporates (M.80).
+    pub evaporated: Option<Vec<f64>>,
     /// Most substeps in one step so far.
     pub max_substeps: u32,
 }
@@ -89,6 +92,7 @@ impl Simulation {
                 laser_power: t.laser_power.clone(),
                 laser_energy: t.laser_energy.clone(),
                 boundary_energy: t.boundary_energy.clone(),
+                evaporated: t.evaporation.as_ref().map(|e| e.evaporated.clone()),
                 max_substeps: t.max_substeps,
             }),
             laser: self
@@ -219,6 +223,19 @@ impl Simulation {
                 t.laser_power = saved.laser_power;
                 t.laser_energy = saved.laser_energy;
                 t.boundary_energy = saved.boundary_energy;
+                // A file without the evaporated heat (saved by a scene without evaporation) starts
+                // it at zero; the resumed run's heat balance starts anew anyway.
+                if let (Some(evaporation), Some(evaporated)) =
+                    (&mut t.evaporation, saved.evaporated)
+                {
+                    if evaporated.len() != n {
+                        return Err(format!(
+                            "restart data has {} evaporated heats for {n} particles",
+                            evaporated.len()
+                        ));
+                    }
+                    evaporation.evaporated = evaporated;
+                }
                 t.max_substeps = saved.max_substeps;
                 Some(t)
             }

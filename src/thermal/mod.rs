@@ -5,7 +5,9 @@
 //!           + ε_i σ A_i (T_env⁴ − T_i⁴) + P_laser,i                                   [W]
 //! ```
 //!
-//! with the enthalpy `E_i` carrying the latent heat of fusion (M.48) and `T_i = T(E_i)`.
+//! with the enthalpy `E_i` carrying the latent heat of fusion (M.48) and `T_i = T(E_i)`. A
+//! material with a boiling point evaporates there (M.80): enthalpy beyond `C T_b + m L` leaves
+//! with the vapour, so its particles never pass `T_b`.
 //!
 //! # Time integration (M.49)
 //! Sub-cycled explicit Euler on the enthalpy: the mechanical step is split into `n` substeps with
@@ -49,6 +51,19 @@ pub struct ThermalMaterial {
     pub emissivity: f64,
     /// Absorptivity of laser light (fraction of the incident power absorbed).
     pub absorptivity: f64,
+    /// Where and at what cost the material evaporates (M.80); `None`: it never does, and its
+    /// temperature has no bound.
+    pub vaporization: Option<Vaporization>,
+}
+
+/// Evaporation of a material at its boiling point (M.80).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vaporization {
+    /// Boiling point T_b \[K\], above the melting point.
+    pub boiling_point: f64,
+    /// Latent heat of vaporisation L_v [J/kg], `> 0`: what the heat carried off by the vapour
+    /// weighs as evaporated mass.
+    pub latent_heat: f64,
 }
 
 /// The contact conductance model chosen in the scene.
@@ -211,6 +226,9 @@ pub struct ThermalState {
     pub latent_heat: Vec<f64>,
     /// Melting point \[K\] (per particle, from its material).
     pub melting_point: Vec<f64>,
+    /// With a material that evaporates: its particles' boiling enthalpies and the heat their
+    /// vapour carried off (M.80). `None` otherwise: no arrays, and no test in the update.
+    pub evaporation: Option<Evaporation>,
     /// Latched bond criterion: the particle has reached its melting point at some time.
     pub melted: Vec<bool>,
     /// Laser power absorbed during the current step \[W\].
@@ -250,6 +268,10 @@ impl ThermalState {
         select(&mut self.heat_capacity, order);
         select(&mut self.latent_heat, order);
         select(&mut self.melting_point, order);
+        if let Some(evaporation) = &mut self.evaporation {
+            select(&mut evaporation.boiling_enthalpy, order);
+            select(&mut evaporation.evaporated, order);
+        }
         select(&mut self.melted, order);
         select(&mut self.laser_power, order);
         select(&mut self.heat_sums, order);
@@ -275,6 +297,30 @@ impl ThermalState {
             .fold((0.0, 0.0), |(stored, moved), (e, e0)| {
                 (stored + (e - e0), moved + 0.5 * (e - e0).abs())
             })
+    }
+}
+
+/// Per particle, where evaporation begins and what it has carried off (M.80), structure of
+/// arrays like [`ThermalState`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Evaporation {
+    /// The boiling enthalpy `E_b = C T_b + m L` \[J\]: `+∞` for a particle whose material does
+    /// not evaporate.
+    pub boiling_enthalpy: Vec<f64>,
+    /// Heat carried off by the particle's vapour since the start \[J\].
+    pub evaporated: Vec<f64>,
+}
+
+/// Evaporation at the boiling point (M.80): a particle's enthalpy beyond its boiling enthalpy
+/// `E_b = C T_b + m L` leaves with the vapour at once, so that `T(E) ≤ T_b`. Returns `(the
+/// enthalpy kept, the heat carried off)` \[J\]; `E ≤ E_b` is kept whole.
+#[must_use]
+#[inline]
+pub fn evaporate(enthalpy: f64, boiling_enthalpy: f64) -> (f64, f64) {
+    if enthalpy > boiling_enthalpy {
+        (boiling_enthalpy, enthalpy - boiling_enthalpy)
+    } else {
+        (enthalpy, 0.0)
     }
 }
 
@@ -365,8 +411,36 @@ impl ThermalState {
         state.boundary_flow = vec![0.0; n];
         state.laser_energy = vec![0.0; n];
         state.boundary_energy = vec![0.0; n];
+        if model.materials.iter().any(|m| m.vaporization.is_some()) {
+            let boiling_enthalpy = (0..n)
+                .map(|k| {
+                    let material = &model.materials[usize::from(particles.material[k])];
+                    material.vaporization.map_or(f64::INFINITY, |v| {
+                        enthalpy_from_temperature(
+                            v.boiling_point,
+                            state.heat_capacity[k],
+                            material.melting_point,
+                            state.latent_heat[k],
+                        )
+                    })
+                })
+                .collect();
+            state.evaporation = Some(Evaporation {
+                boiling_enthalpy,
+                evaporated: vec![0.0; n],
+            });
+        }
         state.mark_start();
         state
+    }
+
+    /// Heat carried off by evaporation since the start \[J\] (summed in index order); 0 without
+    /// a material that evaporates.
+    #[must_use]
+    pub fn total_evaporated(&self) -> f64 {
+        self.evaporation
+            .as_ref()
+            .map_or(0.0, |e| e.evaporated.iter().sum())
     }
 
     /// Total enthalpy `Σ E_i` \[J\], summed in index order (reproducible).
@@ -524,11 +598,11 @@ pub fn max_heat_rate(sums: &[HeatSums], heat_capacity: &[f64], parallel: bool) -
 /// A chunk's laser and boundary energy accumulators, kept with a laser or boundary exchange.
 type Accumulators<'a> = Option<(&'a mut [f64], &'a mut [f64])>;
 
-/// A chunk of the temperature update: enthalpies, temperatures and melted flags, and its
-/// accumulators.
+/// A chunk of the temperature update: enthalpies, temperatures and melted flags, its
+/// accumulators, and with evaporation the heat its vapour carried off.
 type Chunk<'a> = (
     ((&'a mut [f64], &'a mut [f64]), &'a mut [bool]),
-    Accumulators<'a>,
+    (Accumulators<'a>, Option<&'a mut [f64]>),
 );
 
 /// What [`advance`] needs to know about the step besides the state.
@@ -592,6 +666,7 @@ pub fn advance(
             heat_capacity,
             melting_point,
             latent_heat,
+            evaporation,
             melted,
             heat_sums,
             laser_power,
@@ -600,11 +675,6 @@ pub fn advance(
             boundary_energy,
             ..
         } = state;
-        let core = |k: usize, e: &mut f64, t: &mut f64, m: &mut bool| {
-            *e += dt_sub * heat_sums[k].flow;
-            *t = temperature_from_enthalpy(*e, heat_capacity[k], melting_point[k], latent_heat[k]);
-            *m |= *t >= melting_point[k];
-        };
         // The energy accumulators cost two more streams; a scene without laser and boundary
         // exchange does not pay for them (its laser and boundary powers are zero anyway).
         let accumulate = laser_on || model.has_boundary_exchange();
@@ -619,16 +689,42 @@ pub fn advance(
         let accumulators = optional_items(laser_energy)
             .zip(optional_items(boundary_energy))
             .map(|(laser, boundary)| laser.zip(boundary));
+        let (boiling_enthalpy, evaporated) = evaporation
+            .as_mut()
+            .map(|e| (e.boiling_enthalpy.as_slice(), e.evaporated.as_mut_slice()))
+            .unzip();
         let chunks: Vec<_> = enthalpy
             .chunks_mut(PARTICLES_PER_ITEM)
             .zip(temperature.chunks_mut(PARTICLES_PER_ITEM))
             .zip(melted.chunks_mut(PARTICLES_PER_ITEM))
-            .zip(accumulators)
+            .zip(accumulators.zip(optional_items(evaporated)))
             .collect();
-        let update = |c: usize, (((e, t), m), accumulated): Chunk<'_>| {
+        let update = |c: usize, (((e, t), m), (accumulated, evaporated)): Chunk<'_>| {
             let first = c * PARTICLES_PER_ITEM;
-            for (k, ((e, t), m)) in (first..).zip(e.iter_mut().zip(t).zip(m)) {
-                core(k, e, t, m);
+            let temperature_of = |k: usize, e: f64| {
+                temperature_from_enthalpy(e, heat_capacity[k], melting_point[k], latent_heat[k])
+            };
+            match (evaporated, boiling_enthalpy) {
+                // A loop of its own, so that a scene without evaporation tests nothing more.
+                (Some(evaporated), Some(boiling)) => {
+                    for (k, ((e, t), (m, gone))) in
+                        (first..).zip(e.iter_mut().zip(t).zip(m.iter_mut().zip(evaporated)))
+                    {
+                        let (kept, carried_off) =
+                            evaporate(*e + dt_sub * heat_sums[k].flow, boiling[k]);
+                        *e = kept;
+                        *gone += carried_off;
+                        *t = temperature_of(k, kept);
+                        *m |= *t >= melting_point[k];
+                    }
+                }
+                _ => {
+                    for (k, ((e, t), m)) in (first..).zip(e.iter_mut().zip(t).zip(m)) {
+                        *e += dt_sub * heat_sums[k].flow;
+                        *t = temperature_of(k, *e);
+                        *m |= *t >= melting_point[k];
+                    }
+                }
             }
             if let Some((laser, boundary)) = accumulated {
                 for (k, (laser, boundary)) in (first..).zip(laser.iter_mut().zip(boundary)) {
@@ -763,6 +859,80 @@ fn heat_flows(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn evaporation_keeps_the_boiling_enthalpy_and_carries_off_the_rest() {
+        // C = 2 J/K, m L = 3 J, T_m = 1000 K, T_b = 2500 K: E_b = 5003 J.
+        let (capacity, latent, melting) = (2.0, 3.0, 1000.0);
+        let boiling_enthalpy = enthalpy_from_temperature(2500.0, capacity, melting, latent);
+        assert_eq!(boiling_enthalpy, 5003.0);
+        assert_eq!(evaporate(4000.0, boiling_enthalpy), (4000.0, 0.0));
+        assert_eq!(evaporate(boiling_enthalpy, boiling_enthalpy), (5003.0, 0.0));
+        assert_eq!(evaporate(5010.5, boiling_enthalpy), (5003.0, 7.5));
+        assert_eq!(
+            temperature_from_enthalpy(boiling_enthalpy, capacity, melting, latent),
+            2500.0
+        );
+        // A material without a boiling point: nothing leaves, however hot.
+        assert_eq!(evaporate(1e30, f64::INFINITY), (1e30, 0.0));
+    }
+
+    #[test]
+    fn only_the_particles_of_a_material_that_boils_get_a_finite_boiling_enthalpy() {
+        use crate::particles::ParticleInit;
+        let material = |vaporization| ThermalMaterial {
+            specific_heat: 500.0,
+            conductivity: 20.0,
+            melting_point: 1700.0,
+            latent_heat: 2.7e5,
+            emissivity: 0.4,
+            absorptivity: 0.6,
+            vaporization,
+        };
+        let mut model = ThermalModel {
+            materials: vec![
+                material(None),
+                material(Some(Vaporization {
+                    boiling_point: 3090.0,
+                    latent_heat: 6.1e6,
+                })),
+            ],
+            conduction: ConductionModel::BatchelorObrien,
+            convection: None,
+            radiation: None,
+            wall_temperatures: Vec::new(),
+            initial_temperature: 300.0,
+            initial_regions: Vec::new(),
+            substep_fraction: 0.5,
+            harmonic_conductivities: Vec::new(),
+        };
+        let mut particles = Particles::default();
+        for material in [0, 1, 1, 0] {
+            particles.push(
+                ParticleInit {
+                    position: glam::DVec3::ZERO,
+                    velocity: glam::DVec3::ZERO,
+                    radius: 1e-5,
+                    material,
+                },
+                7950.0,
+            );
+        }
+        let state = ThermalState::new(&model, &particles);
+        let evaporation = state.evaporation.as_ref().expect("one material boils");
+        for k in 0..4 {
+            let expected = if particles.material[k] == 1 {
+                state.heat_capacity[k] * 3090.0 + state.latent_heat[k]
+            } else {
+                f64::INFINITY
+            };
+            assert_eq!(evaporation.boiling_enthalpy[k], expected, "particle {k}");
+        }
+        assert_eq!(evaporation.evaporated, vec![0.0; 4]);
+        // Without a material that boils, the state carries no evaporation arrays.
+        model.materials[1].vaporization = None;
+        assert!(ThermalState::new(&model, &particles).evaporation.is_none());
+    }
 
     /// A bed at 300 K is inert only while every boundary it exchanges with is at 300 K and no
     /// particle melted; each condition alone breaks it.
