@@ -24,13 +24,15 @@
 //! # Near lists
 //! Most candidate pairs of a packed bed are not touching, and whether they touch changes slowly:
 //! in a step a particle moves a tiny fraction of the skin. The force pass therefore keeps, per
-//! slab, the slots whose gap was below a *near skin* ([`NeighborList::near_skin`], an eighth of
-//! the skin) at its last refresh ([`NearPairs`]), and tests only those. Between refreshes no
-//! other pair can come into contact as long as every particle moved less than half the near
-//! skin (each end of a gap closes it by at most its own displacement); the simulation bounds the
-//! displacement by the largest speed of each step and refreshes before the bound reaches it
-//! (`Simulation::step`). A rebuild of the list invalidates the near lists (their slots are
-//! renumbered): a new [`NeighborList::generation`].
+//! slab, the slots whose gap was below a *near skin* at its last refresh ([`NearPairs`]), and
+//! tests only those. Between refreshes no other pair can come into contact as long as every
+//! particle moved less than half the near skin (each end of a gap closes it by at most its own
+//! displacement); the simulation bounds the displacement by the largest speed of each step and
+//! refreshes before the bound reaches it (`Simulation::step`). The first lists use an eighth of
+//! the skin ([`NeighborList::near_skin`]); from then on each refresh takes the near skin that
+//! would have made the last period's sifting cheapest ([`NearSkinTuner`]): small for a settled
+//! bed, larger for a lively one. A rebuild of the list invalidates the near lists (their slots
+//! are renumbered): a new [`NeighborList::generation`].
 //!
 //! # Storage order
 //! [`NeighborList::spatial_order`] sorts particles by cell, slab-major; the simulation stores them
@@ -55,9 +57,9 @@ use rayon::prelude::*;
 use crate::periodic::Periodic;
 use crate::scatter::{NearPair, NearVisit, SlabVisit, Window};
 
-/// The near skin as a fraction of the skin: small enough that the near lists hold few pairs
-/// beyond the touching ones (about 2.3 slots per particle on the LIGGGHTS bed, against 4.8
-/// candidates), large enough that a settled bed refreshes them every hundred steps or so.
+/// The first near lists' near skin as a fraction of the skin (the tuner takes over at the first
+/// refresh): they hold about 2.7 slots per particle on the 19.2k LIGGGHTS bed, against 4.8
+/// candidates and 0.65-0.8 touching pairs, and last about 250 steps there.
 pub const NEAR_SKIN_FRACTION: f64 = 0.125;
 
 thread_local! {
@@ -110,6 +112,8 @@ pub struct NearPairs {
     /// Each slab's entries, behind a lock only so that the concurrent visits of a colour phase
     /// can each take their own (never contended).
     slabs: Vec<Mutex<Vec<NearPair>>>,
+    /// The near skin the next recording uses \[m\] (`None`: [`NeighborList::near_skin`]).
+    skin: Option<f64>,
 }
 
 impl Clone for NearPairs {
@@ -140,6 +144,103 @@ impl NearPairs {
     #[must_use]
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+
+    /// The near skin \[m\] the lists are (or will next be) recorded with, for `list`: the one
+    /// set by [`Self::set_skin`], else the list's default ([`NeighborList::near_skin`]).
+    #[must_use]
+    pub fn skin(&self, list: &NeighborList) -> f64 {
+        self.skin.unwrap_or_else(|| list.near_skin())
+    }
+
+    /// Sets the near skin \[m\] of the next recording (the lists in hand keep theirs: only a
+    /// recording may change it, [`NeighborList::for_each_slab_near`]).
+    pub fn set_skin(&mut self, skin: f64) {
+        self.skin = Some(skin);
+    }
+}
+
+/// What one refresh period of the near lists showed: the data of [`NearSkinTuner::next`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NearPeriod {
+    /// The near skin the lists were recorded with \[m\].
+    pub skin: f64,
+    /// Steps the period lasted (from one recording to the next).
+    pub steps: u64,
+    /// The travel bound summed over those steps (`dt |v|max` per drift) \[m\].
+    pub travel: f64,
+    /// Entries the near lists held.
+    pub entries: usize,
+    /// The pairs touching when they were recorded.
+    pub touching: usize,
+}
+
+/// Work of a full sift per candidate over the work of a near sift per entry, fitted to the
+/// instruction counts of the 19.2k LIGGGHTS bed at four fixed near skins (skin/8 … skin/128:
+/// about 68 and 56 instructions, `benches/instructions.sh`).
+const FULL_SIFT_COST_RATIO: f64 = 1.2;
+
+/// Chooses the near skin of each refresh period from the periods before it.
+///
+/// Per step the force pass sifts the near entries, `n(s)`: the touching pairs and those whose
+/// gap is below the near skin s. Every `s / (2 τ)` steps it sifts all C candidates instead
+/// (τ: the travel bound per step). Their sum per step, with the full sift's cost per candidate
+/// `b` (`FULL_SIFT_COST_RATIO`, 1.2, fitted to instruction counts) times the near sift's per entry,
+///
+/// ```text
+/// W(s) = n(s) + 2 b C τ / s          is least where    n'(s) = 2 b C τ / s²,   s* = √(2 b C τ / n'(s))
+/// ```
+///
+/// The slope n'(s) is measured, not modelled: a packed bed has most of its near pairs within
+/// a few tens of nanometres of touching (n − n_touching grows only as about s^0.25 between
+/// skin/256 and skin/8 on the 19.2k LIGGGHTS bed), so the mean density (n − n_touching)/s would
+/// overstate it fourfold. Each period's entries beyond the touching pairs, against the last
+/// period's at another skin, give the slope; τ is the last period's. A static bed gets a small
+/// near skin (about skin/80 on that bed, refreshed every 25 steps), a lively one a larger one
+/// (a fixed skin/32 made that bed's step 4 % faster, and the flagship's deposition 15 % slower,
+/// than skin/8). The skin stays between skin/256 and skin/4 and moves by at most a factor of two
+/// per period. Which pairs a near list holds beyond the touching ones changes no force, so no
+/// result depends on the choice.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct NearSkinTuner {
+    /// The last period's near skin \[m\] and entries beyond the touching pairs.
+    last: Option<(f64, f64)>,
+    /// The last measured slope n'(s) [1/m].
+    slope: Option<f64>,
+}
+
+impl NearSkinTuner {
+    /// The near skin for the next period \[m\], given the one that ended, the list's `candidates`
+    /// and its `skin` \[m\].
+    pub fn next(&mut self, period: NearPeriod, candidates: usize, skin: f64) -> f64 {
+        let bounds = |s: f64| s.clamp(skin / 256.0, skin / 4.0);
+        #[allow(clippy::cast_precision_loss)]
+        let beyond = period.entries.saturating_sub(period.touching) as f64;
+        if let Some((last_skin, last_beyond)) = self.last {
+            // Skins 20 % apart or more: a slope the entries' own scatter does not swamp.
+            if (period.skin - last_skin).abs() > 0.2 * period.skin.min(last_skin) {
+                let slope = (beyond - last_beyond) / (period.skin - last_skin);
+                if slope > 0.0 {
+                    self.slope = Some(slope);
+                }
+            }
+        }
+        self.last = Some((period.skin, beyond));
+        if period.steps == 0 || period.skin.is_nan() || period.skin <= 0.0 {
+            return bounds(period.skin);
+        }
+        #[allow(clippy::cast_precision_loss)]
+        let travel_per_step = period.travel / period.steps as f64;
+        let best = match self.slope {
+            #[allow(clippy::cast_precision_loss)]
+            Some(slope) => {
+                (2.0 * FULL_SIFT_COST_RATIO * candidates as f64 * travel_per_step / slope).sqrt()
+            }
+            // No slope yet: halve the skin (the default is large for a settled bed), so that
+            // the next period measures one.
+            None => 0.5 * period.skin,
+        };
+        bounds(best.clamp(0.5 * period.skin, 2.0 * period.skin))
     }
 }
 
@@ -552,8 +653,9 @@ impl NeighborList {
         self.skin
     }
 
-    /// The near skin \[m\]: a pair whose gap is below it at a refresh is in its slab's near list
-    /// ([`NEAR_SKIN_FRACTION`] of the skin).
+    /// The default near skin \[m\] ([`NEAR_SKIN_FRACTION`] of the skin): a pair whose gap is below
+    /// it at a refresh is in its slab's near list, until the simulation chooses another
+    /// ([`NearSkinTuner`]).
     #[must_use]
     pub fn near_skin(&self) -> f64 {
         NEAR_SKIN_FRACTION * self.skin
@@ -902,6 +1004,82 @@ fn colour_phases(slab_count: u32, wrapping: bool) -> Vec<Vec<u32>> {
 
 #[cfg(test)]
 mod tests {
+    use super::{NearPeriod, NearSkinTuner};
+
+    /// A bed whose near entries beyond the touching pairs grow as `A s^α` (a packed bed has
+    /// most of them within nanometres of touching, α ≈ 0.25), with `candidates` pairs in the
+    /// list and a travel bound of `tau` \[m\] per step: the periods the tuner would see.
+    fn period(skin: f64, alpha: f64, tau: f64) -> NearPeriod {
+        let steps = (skin / (2.0 * tau)).floor().max(1.0);
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        NearPeriod {
+            skin,
+            steps: steps as u64,
+            travel: steps * tau,
+            entries: 10_000 + (40_000.0 * (skin / 1e-6).powf(alpha)) as usize,
+            touching: 10_000,
+        }
+    }
+
+    #[test]
+    fn the_near_skin_settles_where_the_sift_costs_least() {
+        let (skin, candidates) = (9e-6, 90_000);
+        for (alpha, tau) in [(0.25, 2.3e-9), (1.0, 2.3e-9), (0.25, 2e-8), (0.5, 1e-9)] {
+            // The work per step in near-entry units, W(s) = n(s) + 2 b C τ / s, at its least
+            // on a fine grid of skins: what the tuner aims at.
+            #[allow(clippy::cast_precision_loss)]
+            let work = |s: f64| {
+                let p = period(s, alpha, tau);
+                p.entries as f64 + 2.0 * 1.2 * candidates as f64 * tau / s
+            };
+            let best = (0..2000)
+                .map(|k| skin / 256.0 * (256.0_f64 / 4.0).powf(f64::from(k) / 1999.0))
+                .min_by(|a, b| work(*a).total_cmp(&work(*b)))
+                .unwrap();
+            let mut tuner = NearSkinTuner::default();
+            let mut near_skin = skin / 8.0;
+            for _ in 0..40 {
+                let next = tuner.next(period(near_skin, alpha, tau), candidates, skin);
+                // Within the bounds, and within a factor of two of the last skin.
+                assert!((skin / 256.0..=skin / 4.0).contains(&next), "{next}");
+                assert!(next <= 2.0 * near_skin && next >= 0.5 * near_skin);
+                near_skin = next;
+            }
+            // The secant slope of a power law is not its tangent: the work, not the skin, is
+            // what must come out near its least (within 2 %).
+            let ratio = work(near_skin) / work(best);
+            eprintln!(
+                "α {alpha}, τ {tau:e}: settled at {near_skin:.3e} m, least work at {best:.3e} m, work ratio {ratio:.4}"
+            );
+            assert!(ratio < 1.02, "{ratio}");
+        }
+    }
+
+    #[test]
+    fn a_bed_at_rest_gets_the_smallest_near_skin_and_a_lively_one_a_larger_one() {
+        let (skin, candidates) = (9e-6, 90_000);
+        let mut resting = NearSkinTuner::default();
+        let mut near_skin = skin / 8.0;
+        for _ in 0..10 {
+            let mut p = period(near_skin, 0.25, 1e-12);
+            p.travel = 0.0;
+            near_skin = resting.next(p, candidates, skin);
+        }
+        assert_eq!(near_skin, skin / 256.0);
+        // A lively bed (1 µm per step, skins of a period of a few steps) goes the other way,
+        // up to a quarter of the skin.
+        let mut lively = NearSkinTuner::default();
+        let mut near_skin = skin / 8.0;
+        for _ in 0..10 {
+            near_skin = lively.next(period(near_skin, 1.0, 1e-6), candidates, skin);
+        }
+        assert_eq!(near_skin, skin / 4.0);
+        // A period of no steps (two refreshes in a row) keeps the skin.
+        let mut tuner = NearSkinTuner::default();
+        let mut p = period(skin / 16.0, 0.25, 1e-9);
+        p.steps = 0;
+        assert_eq!(tuner.next(p, candidates, skin), skin / 16.0);
+    }
     use super::*;
     use crate::bed::rng::SplitMix64;
 

@@ -133,9 +133,12 @@ fn a_periodic_bed_is_the_same_with_and_without_near_lists_and_rarely_refreshes()
     let sim = common::liggghts_scene("liggghts_bed_20k.toml");
     let steps = 600;
     let sim = same_with_and_without_near_lists(sim, steps);
-    // Largest speed about 0.02 m/s, dt = 1e-7 s, near skin 1.1 µm: a refresh every ~250 steps.
+    // Largest speed about 0.02 m/s, dt = 1e-7 s: the first period (near skin 1.1 µm) lasts
+    // ~250 steps, then the tuner halves the skin and settles near 0.13 µm, a refresh every
+    // ~26 steps (`neighbor::NearSkinTuner`): 10 refreshes in 600 steps. Every pass refreshing
+    // would be 600; a tuner running away to its smallest skin, every ~4 steps.
     let refreshes = sim.diagnostics().near_refreshes;
-    assert!(refreshes <= 10, "{refreshes} refreshes in {steps} steps");
+    assert!(refreshes <= 20, "{refreshes} refreshes in {steps} steps");
 }
 
 /// The falling pile, fast enough to rebuild its list about a dozen times in 4000 steps: the

@@ -461,6 +461,9 @@ pub struct ForceSummary {
     pub max_overlap_ratio: f64,
     /// The particle (index) with that smaller radius.
     pub max_overlap_particle: usize,
+    /// Touching particle pairs the pass met (the near lists' choice of skin weighs them,
+    /// `neighbor::NearSkinTuner`).
+    pub pair_contacts: usize,
 }
 
 impl ForceSummary {
@@ -481,6 +484,7 @@ impl ForceSummary {
     fn merge(mut self, other: Self) -> Self {
         self.observe_overlap(other.max_overlap_ratio, other.max_overlap_particle);
         self.max_heat_rate = self.max_heat_rate.max(other.max_heat_rate);
+        self.pair_contacts += other.pair_contacts;
         self
     }
 }

@@ -114,7 +114,7 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     (set, interval): (InstructionSet, f64),
     parallel: bool,
 ) -> ForceSummary {
-    let near_skin = list.near_skin();
+    let near_skin = near.skin(list);
     list.for_each_slab_near(
         parallel,
         near,
@@ -419,6 +419,7 @@ impl<'r, 's> Batch<'r, 's> {
                     lane += 1;
                     let (a, b) = reads.pair(owner, partner);
                     summary.observe_overlap(out.overlap_ratio, if r_a <= r_b { a } else { b });
+                    summary.pair_contacts += 1;
                     if let Some(states) = states {
                         if out.state != state_before {
                             states.write(slot, out.state);

@@ -28,7 +28,7 @@ use crate::forces::{self, Evaluation, ForceSummary};
 use crate::integrate;
 use crate::laser;
 use crate::model::Model;
-use crate::neighbor::{HeldPairs, NearPairs, NeighborList};
+use crate::neighbor::{self, HeldPairs, NearPairs, NeighborList};
 use crate::pair_history::TangentialHistories;
 use crate::particles::{Particles, Rotation};
 use crate::thermal::{self, ThermalState};
@@ -78,6 +78,12 @@ pub struct Simulation {
     /// How far any particle can have moved since the near lists' refresh \[m\]: the sum over
     /// the drifts since of dt times their largest speed.
     near_travel: f64,
+    /// Drifts since the near lists' refresh, and the touching pairs the refreshing pass met:
+    /// with `near_travel`, what the next refresh chooses its near skin from
+    /// (`neighbor::NearSkinTuner`).
+    near_steps: u64,
+    near_touching: usize,
+    near_tuner: neighbor::NearSkinTuner,
     /// Force passes that recorded the near lists anew.
     near_refreshes: u64,
     /// How far any particle can have moved since the neighbour list's build \[m\]: the largest
@@ -171,6 +177,9 @@ impl Simulation {
             tangential: TangentialHistories::default(),
             near: NearPairs::default(),
             near_travel: 0.0,
+            near_steps: 0,
+            near_touching: 0,
+            near_tuner: neighbor::NearSkinTuner::default(),
             near_refreshes: 0,
             build_travel: f64::INFINITY,
             displacement_checks: 0,
@@ -535,14 +544,31 @@ impl Simulation {
         // A pair missing from the near lists had a gap of at least the near skin at their
         // refresh, and each of its particles closed it by at most `near_travel` since: they
         // hold every pair that can touch while 2 × near_travel stays below the near skin.
+        let near_skin = self.near.skin(&self.neighbors);
         let refresh_near = !self.near_lists
             || !self.near.belong_to(&self.neighbors)
-            || !travel_within(2.0 * self.near_travel, self.neighbors.near_skin());
+            || !travel_within(2.0 * self.near_travel, near_skin);
         if refresh_near {
+            // The near skin that would have made the last period cheapest is the next one's
+            // (the lists in hand were recorded with `near_skin`, and hold `self.near.len()`).
+            if self.near_lists && self.near_steps > 0 && !self.near.is_empty() {
+                let last = neighbor::NearPeriod {
+                    skin: near_skin,
+                    steps: self.near_steps,
+                    travel: self.near_travel,
+                    entries: self.near.len(),
+                    touching: self.near_touching,
+                };
+                let next =
+                    self.near_tuner
+                        .next(last, self.neighbors.pair_count(), self.neighbors.skin());
+                self.near.set_skin(next);
+            }
             self.near_travel = 0.0;
+            self.near_steps = 0;
             self.near_refreshes += 1;
         }
-        forces::compute(
+        let summary = forces::compute(
             &self.model,
             &mut self.particles,
             &self.neighbors,
@@ -557,7 +583,11 @@ impl Simulation {
             }),
             heat,
             evaluation,
-        )
+        );
+        if refresh_near {
+            self.near_touching = summary.pair_contacts;
+        }
+        summary
     }
 
     /// The tangential springs stretched now (ξ ≠ 0): `(pairs, particle–wall contacts, their
@@ -702,6 +732,7 @@ impl Simulation {
             (dt, self.model.gravity),
         );
         self.near_travel += dt * drift.max_speed;
+        self.near_steps += 1;
         self.build_travel += dt * drift.max_speed;
         if self.neighbors.is_stale(self.particles.len()) || self.moved_too_far() {
             self.rebuild_neighbors();
