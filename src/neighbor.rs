@@ -196,7 +196,7 @@ const FULL_SIFT_COST_RATIO: f64 = 1.2;
 /// skin/256 and skin/8 on the 19.2k LIGGGHTS bed), so the mean density (n − n_touching)/s would
 /// overstate it fourfold. Each period's entries beyond the touching pairs, against the last
 /// period's at another skin, give the slope; τ is the last period's. A static bed gets a small
-/// near skin (about skin/80 on that bed, refreshed every 25 steps), a lively one a larger one
+/// near skin (about skin/71 on that bed, refreshed every 26 steps), a lively one a larger one
 /// (a fixed skin/32 made that bed's step 4 % faster, and the flagship's deposition 15 % slower,
 /// than skin/8). The skin stays between skin/256 and skin/4 and moves by at most a factor of two
 /// per period. Which pairs a near list holds beyond the touching ones changes no force, so no
