@@ -525,8 +525,6 @@ fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
             t1.laser_energy,
             t1.boundary_energy
         );
-        // Since the start of this run (a resumed run starts with the energies it had), particle
-        // by particle (`ThermalDiagnostics::stored`).
         if let Some(e) = t1.evaporation {
             say!(
                 "  evaporation: {:.4e} J carried off by {:.4e} kg of vapour from {} particles, at most {:.2} % of one particle's mass (M.80; the particles keep their mass)",
@@ -536,6 +534,8 @@ fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
                 100.0 * e.max_fraction
             );
         }
+        // Since the start of this run (a resumed run starts with the energies it had), particle
+        // by particle (`ThermalDiagnostics::stored`).
         let stored = t1.stored - t0.stored;
         // Laser and boundaries, less what the vapour carried off.
         let supplied = t1.supplied_since(&t0);

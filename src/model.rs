@@ -298,14 +298,14 @@ impl Model {
         &self.wall_params[wall * self.materials.len() + usize::from(material)]
     }
 
-    /// L_v of `material` [J/kg] (M.80): `+∞` for a material that does not evaporate (or without
-    /// `[thermal]`), so that heat over it weighs nothing.
+    /// The mass \[kg\] of the vapour that carried off `heat` \[J\] from a particle of `material`
+    /// (M.80): `heat / L_v`; 0 for a material that does not evaporate (or without `[thermal]`).
     #[must_use]
-    pub fn latent_heat_of_vaporization(&self, material: u16) -> f64 {
+    pub fn evaporated_mass(&self, material: u16, heat: f64) -> f64 {
         self.thermal
             .as_ref()
             .and_then(|t| t.materials[usize::from(material)].vaporization)
-            .map_or(f64::INFINITY, |v| v.latent_heat)
+            .map_or(0.0, |v| heat / v.latent_heat)
     }
 
     /// True when the scene has a `[bond]` section.

@@ -1004,7 +1004,8 @@ fn colour_phases(slab_count: u32, wrapping: bool) -> Vec<Vec<u32>> {
 
 #[cfg(test)]
 mod tests {
-    use super::{NearPeriod, NearSkinTuner};
+    use super::*;
+    use crate::bed::rng::SplitMix64;
 
     /// A bed whose near entries beyond the touching pairs grow as `A s^α` (a packed bed has
     /// most of them within nanometres of touching, α ≈ 0.25), with `candidates` pairs in the
@@ -1030,7 +1031,7 @@ mod tests {
             #[allow(clippy::cast_precision_loss)]
             let work = |s: f64| {
                 let p = period(s, alpha, tau);
-                p.entries as f64 + 2.0 * 1.2 * candidates as f64 * tau / s
+                p.entries as f64 + 2.0 * FULL_SIFT_COST_RATIO * candidates as f64 * tau / s
             };
             let best = (0..2000)
                 .map(|k| skin / 256.0 * (256.0_f64 / 4.0).powf(f64::from(k) / 1999.0))
@@ -1080,8 +1081,6 @@ mod tests {
         p.steps = 0;
         assert_eq!(tuner.next(p, candidates, skin), skin / 16.0);
     }
-    use super::*;
-    use crate::bed::rng::SplitMix64;
 
     fn random_cloud(count: usize, size: DVec3, seed: u64) -> Vec<DVec3> {
         let mut rng = SplitMix64(seed);

@@ -238,7 +238,8 @@ pub fn capture(sim: &Simulation, selected: &[OptionalField]) -> Frame {
         if let (Some(evaporation), true) = (&t.evaporation, has(OptionalField::EvaporatedMass)) {
             let mass = (0..p.len())
                 .map(|k| {
-                    evaporation.evaporated[k] / sim.model.latent_heat_of_vaporization(p.material[k])
+                    sim.model
+                        .evaporated_mass(p.material[k], evaporation.evaporated[k])
                 })
                 .collect();
             points.push(Field {

@@ -257,7 +257,7 @@ impl Simulation {
                         ..EvaporationDiagnostics::default()
                     };
                     for (k, &heat) in e.evaporated.iter().enumerate() {
-                        let mass = heat / self.model.latent_heat_of_vaporization(p.material[k]);
+                        let mass = self.model.evaporated_mass(p.material[k], heat);
                         d.heat += heat;
                         d.mass += mass;
                         d.max_fraction = d.max_fraction.max(mass / p.mass[k]);

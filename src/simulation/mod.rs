@@ -295,8 +295,7 @@ impl Simulation {
                 if let Some(evaporation) = &t.evaporation {
                     let heat = evaporation.evaporated[k];
                     removed.evaporated += heat;
-                    removed.evaporated_mass +=
-                        heat / self.model.latent_heat_of_vaporization(p.material[k]);
+                    removed.evaporated_mass += self.model.evaporated_mass(p.material[k], heat);
                 }
             }
         }

@@ -434,15 +434,6 @@ impl ThermalState {
         state
     }
 
-    /// Heat carried off by evaporation since the start \[J\] (summed in index order); 0 without
-    /// a material that evaporates.
-    #[must_use]
-    pub fn total_evaporated(&self) -> f64 {
-        self.evaporation
-            .as_ref()
-            .map_or(0.0, |e| e.evaporated.iter().sum())
-    }
-
     /// Total enthalpy `Σ E_i` \[J\], summed in index order (reproducible).
     #[must_use]
     pub fn total_enthalpy(&self) -> f64 {
