@@ -5,19 +5,8 @@
 mod common;
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn am_sim(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_am-sim"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("am-sim runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use common::{am_sim, am_sim_failing, assert_contains_all, text};
 
 /// 40 spheres: 10 from `spheres.csv` resting in the lower part of a 5 × 5 d box, 30 inserted
 /// above them; they settle on the plate, then 100 steps run with a series row every 10.
@@ -155,9 +144,7 @@ fn a_bed_that_does_not_settle_in_time_stops_the_run() {
     let root = tempfile::tempdir().unwrap();
     // 1 ms: the inserted spheres are still falling (free fall over 0.2 mm takes 6 ms).
     let path = write_scene(root.path(), 1e-3);
-    let out = am_sim(root.path(), &[&path, "--threads", "1", "-q"]);
-    let stderr = text(&out.stderr);
-    assert!(!out.status.success());
+    let stderr = am_sim_failing(root.path(), &[&path, "--threads", "1", "-q"]);
     assert!(
         stderr.contains("deposition: 10000 steps")
             && stderr.contains("not settled within deposition.max_duration_s"),
@@ -178,14 +165,13 @@ fn an_energy_blow_up_stops_the_deposition_at_its_next_check() {
         .replace("dt_s = 1e-7", "dt_s = 1.2e-6")
         + "[guards]\nmax_energy_residual = 0.1\n";
     std::fs::write(&path, scene).unwrap();
-    let out = am_sim(root.path(), &[&path, "--threads", "1", "-q", "--force"]);
-    let stderr = text(&out.stderr);
-    assert!(!out.status.success());
-    for expected in [
-        "deposition: step 1000 ",
-        "an energy blow-up",
-        "guards.max_energy_residual = 0.1",
-    ] {
-        assert!(stderr.contains(expected), "lacks {expected:?}: {stderr}");
-    }
+    let stderr = am_sim_failing(root.path(), &[&path, "--threads", "1", "-q", "--force"]);
+    assert_contains_all(
+        &stderr,
+        &[
+            "deposition: step 1000 ",
+            "an energy blow-up",
+            "guards.max_energy_residual = 0.1",
+        ],
+    );
 }

@@ -3,22 +3,11 @@
 mod common;
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn am_sim(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_am-sim"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("am-sim runs")
-}
+use common::{am_sim, am_sim_failing, assert_contains_all, text};
 
 fn scene(name: &str) -> String {
     format!("{}/scenes/{name}", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
 }
 
 #[test]
@@ -30,18 +19,16 @@ fn run_writes_the_series_and_reports_the_bond() {
     );
     let stdout = text(&out.stdout);
     assert!(out.status.success(), "{stdout}\n{}", text(&out.stderr));
-    for expected in [
-        "10000 steps",
-        "particle-steps/s",
-        "bonds: 1",
-        "wall time",
-        "energy: mechanical",
-    ] {
-        assert!(
-            stdout.contains(expected),
-            "summary lacks {expected:?}:\n{stdout}"
-        );
-    }
+    assert_contains_all(
+        &stdout,
+        &[
+            "10000 steps",
+            "particle-steps/s",
+            "bonds: 1",
+            "wall time",
+            "energy: mechanical",
+        ],
+    );
     let csv = std::fs::read_to_string(dir.path().join("paper_5_1_bond.csv")).unwrap();
     let mut lines = csv.lines();
     assert_eq!(
@@ -65,9 +52,7 @@ fn an_existing_output_is_never_overwritten_silently() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("paper_5_1_bond.csv");
     std::fs::write(&file, "precious results\n").unwrap();
-    let out = am_sim(dir.path(), &[&scene("paper_5_1_bond.toml")]);
-    assert!(!out.status.success());
-    let stderr = text(&out.stderr);
+    let stderr = am_sim_failing(dir.path(), &[&scene("paper_5_1_bond.toml")]);
     assert!(
         stderr.contains("already exists") && stderr.contains("--overwrite"),
         "{stderr}"
@@ -94,19 +79,17 @@ fn check_prints_the_derived_bond_quantities_and_runs_nothing() {
     let out = am_sim(dir.path(), &["check", &scene("paper_5_1_bond.toml")]);
     let stdout = text(&out.stdout);
     assert!(out.status.success(), "{}", text(&out.stderr));
-    for expected in [
-        "v_crit = 2.5744 m/s",
-        "δ_eq = 5.0000e-5 m",
-        "δ_crit = 2.2222e-5 m",
-        "Rayleigh time",
-        "Hertz contact time",
-        "time step: OK",
-    ] {
-        assert!(
-            stdout.contains(expected),
-            "check lacks {expected:?}:\n{stdout}"
-        );
-    }
+    assert_contains_all(
+        &stdout,
+        &[
+            "v_crit = 2.5744 m/s",
+            "δ_eq = 5.0000e-5 m",
+            "δ_crit = 2.2222e-5 m",
+            "Rayleigh time",
+            "Hertz contact time",
+            "time step: OK",
+        ],
+    );
     assert!(
         !dir.path().join("paper_5_1_bond.csv").exists(),
         "check must not write output"
@@ -137,9 +120,7 @@ fn a_bad_scene_fails_before_anything_is_written() {
         .unwrap()
         .replace("radius_m = 0.001", "radius_m = -0.001");
     std::fs::write(dir.path().join("bad.toml"), bad).unwrap();
-    let out = am_sim(dir.path(), &["bad.toml"]);
-    assert!(!out.status.success());
-    let stderr = text(&out.stderr);
+    let stderr = am_sim_failing(dir.path(), &["bad.toml"]);
     assert!(
         stderr.contains("bad.toml")
             && stderr.contains("particles[0].radius_m = -0.001: must be > 0"),
@@ -181,9 +162,7 @@ fn a_dt_beyond_the_stability_limit_is_refused_and_a_forced_run_is_stopped_by_a_g
         .unwrap()
         .replace("dt_s = 5e-7", "dt_s = 4e-5");
     std::fs::write(dir.path().join("fast.toml"), fast).unwrap();
-    let out = am_sim(dir.path(), &["fast.toml", "-q"]);
-    let stderr = text(&out.stderr);
-    assert!(!out.status.success());
+    let stderr = am_sim_failing(dir.path(), &["fast.toml", "-q"]);
     assert!(
         stderr.contains("simulation.dt_s = 4.000e-5 s is beyond the stability limit 1.258e-5 s")
             && stderr.contains("--force"),
@@ -194,17 +173,16 @@ fn a_dt_beyond_the_stability_limit_is_refused_and_a_forced_run_is_stopped_by_a_g
         "refused runs write nothing"
     );
 
-    let out = am_sim(dir.path(), &["fast.toml", "-q", "--force"]);
-    let stderr = text(&out.stderr);
-    assert!(!out.status.success());
-    for expected in [
-        "step 10 ",
-        "particle id 1",
-        "energy blow-up",
-        "the run is stopped",
-    ] {
-        assert!(stderr.contains(expected), "lacks {expected:?}: {stderr}");
-    }
+    let stderr = am_sim_failing(dir.path(), &["fast.toml", "-q", "--force"]);
+    assert_contains_all(
+        &stderr,
+        &[
+            "step 10 ",
+            "particle id 1",
+            "energy blow-up",
+            "the run is stopped",
+        ],
+    );
     let values = csv_values(&dir.path().join("paper_5_1_bond.csv"));
     assert!(!values.is_empty() && values.iter().all(|v| v.is_finite()));
 }
@@ -238,17 +216,16 @@ material = "m"
 series_csv = "overlap.csv"
 "#;
     std::fs::write(dir.path().join("overlap.toml"), scene_text).unwrap();
-    let out = am_sim(dir.path(), &["overlap.toml", "-q"]);
-    let stderr = text(&out.stderr);
-    assert!(!out.status.success());
-    for expected in [
-        "step 0 ",
-        "particle ids 0, 1",
-        "an overlap of 0.350 × the radius",
-        "guards.max_overlap_ratio = 0.3",
-    ] {
-        assert!(stderr.contains(expected), "lacks {expected:?}: {stderr}");
-    }
+    let stderr = am_sim_failing(dir.path(), &["overlap.toml", "-q"]);
+    assert_contains_all(
+        &stderr,
+        &[
+            "step 0 ",
+            "particle ids 0, 1",
+            "an overlap of 0.350 × the radius",
+            "guards.max_overlap_ratio = 0.3",
+        ],
+    );
     // Raising the guard lets the same scene run: the spheres push apart.
     std::fs::write(
         dir.path().join("overlap.toml"),

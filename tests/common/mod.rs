@@ -156,3 +156,37 @@ pub fn number_after(line: &str, label: &str) -> f64 {
         .and_then(|value| value.parse().ok())
         .unwrap_or_else(|| panic!("no number after {label:?}: {line}"))
 }
+
+/// Runs the `am-sim` binary with `args` in `dir` and waits for it.
+#[must_use]
+pub fn am_sim(dir: &std::path::Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_am-sim"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("am-sim runs")
+}
+
+/// Runs the `am-sim` binary like [`am_sim`], fails the test unless the run fails, and returns
+/// what it wrote to stderr.
+#[must_use]
+pub fn am_sim_failing(dir: &std::path::Path, args: &[&str]) -> String {
+    let out = am_sim(dir, args);
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success(), "am-sim {args:?} succeeded: {stderr}");
+    stderr
+}
+
+/// A process's output as text.
+#[must_use]
+pub fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// Fails the test, naming the first of `expected` that `output` lacks and showing `output`,
+/// unless `output` holds every one.
+pub fn assert_contains_all(output: &str, expected: &[&str]) {
+    for expected in expected {
+        assert!(output.contains(expected), "lacks {expected:?}:\n{output}");
+    }
+}
