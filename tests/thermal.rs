@@ -52,6 +52,9 @@ material = "steel"
     ))
 }
 
+/// A 5 W beam wider than the sphere, held on it for a second: a constant absorbed power.
+const STATIONARY_LASER: &str = "[laser]\npower_w = 5.0\nspot_radius_m = 2e-4\n[laser.path]\nkind = \"stationary\"\nposition_m = [0.0, 0.0]\nduration_s = 1.0";
+
 fn temperature(sim: &Simulation, k: usize) -> f64 {
     sim.thermal.as_ref().unwrap().temperature[k]
 }
@@ -111,7 +114,7 @@ fn radiative_cooling_follows_the_closed_form() {
 #[test]
 fn constant_power_heats_linearly_and_the_latent_heat_holds_a_plateau() {
     let latent = 2.7e5;
-    let laser = "[laser]\npower_w = 5.0\nspot_radius_m = 2e-4\n[laser.path]\nkind = \"stationary\"\nposition_m = [0.0, 0.0]\nduration_s = 1.0";
+    let laser = STATIONARY_LASER;
     let dt = 2e-6;
     let mut sim = one_sphere(
         dt,
@@ -468,7 +471,7 @@ fn a_sphere_heated_past_its_boiling_point_stays_there_and_its_vapour_carries_off
     // The sphere of the plateau test with a boiling point (M.80): solid heating, the melting
     // plateau, liquid heating, then T = T_b for good while the excess leaves with the vapour.
     let (latent, boiling, vaporization) = (2.7e5, 2500.0, 6.0e6);
-    let laser = "[laser]\npower_w = 5.0\nspot_radius_m = 2e-4\n[laser.path]\nkind = \"stationary\"\nposition_m = [0.0, 0.0]\nduration_s = 1.0";
+    let laser = STATIONARY_LASER;
     let dt = 2e-6;
     let material = format!(
         "latent_heat_j_kg = {latent:e}\nabsorptivity = 0.5\nboiling_point_k = {boiling:e}\nlatent_heat_vaporization_j_kg = {vaporization:e}"
