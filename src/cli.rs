@@ -83,8 +83,9 @@ struct RunArgs {
     /// Run even when dt is beyond the scene's stability limit (see `am-sim check`).
     #[arg(long)]
     force: bool,
-    /// The widest instruction set of the contact kernel (default: the widest this processor
-    /// runs). Results are bitwise the same for any; keep `avx2` where AVX-512 runs slower.
+    /// The widest instruction set of the step's vector kernels: the contact laws of pairs and
+    /// walls, the kicks and the drift (default: the widest this processor runs). Results are
+    /// bitwise the same for any; keep `avx2` where AVX-512 runs slower.
     #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(crate::forces::kernel_builds()))]
     simd: Option<String>,
 }

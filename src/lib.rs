@@ -28,6 +28,7 @@ pub mod particles;
 pub mod periodic;
 pub mod scatter;
 pub mod scene;
+pub mod simd;
 pub mod simulation;
 pub mod study;
 pub mod team;

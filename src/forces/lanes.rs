@@ -24,8 +24,6 @@
 //! the bond law, vectorised, which gives bitwise the same (the normal law goes straight to its
 //! Hertz branch there).
 
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use glam::DVec3;
 
 use crate::bed::rng::SplitMix64;
@@ -34,6 +32,7 @@ use crate::contact::{
     self, BondState, FrictionParams, NormalParams, PairKinematics, hertz, rolling,
 };
 use crate::model::Model;
+use crate::simd::{InstructionSet, Kernel, dispatch};
 
 use super::{TangentialContact, tangential_step, unit_normal};
 
@@ -473,7 +472,7 @@ struct PairKernel<'a, const BONDS: bool, const FRICTION: bool, const ROLLING: bo
     lanes: &'a mut ContactLanes,
 }
 
-impl<const BONDS: bool, const FRICTION: bool, const ROLLING: bool> LaneLoop
+impl<const BONDS: bool, const FRICTION: bool, const ROLLING: bool> Kernel
     for PairKernel<'_, BONDS, FRICTION, ROLLING>
 {
     #[inline(always)]
@@ -484,172 +483,6 @@ impl<const BONDS: bool, const FRICTION: bool, const ROLLING: bool> LaneLoop
             self.lanes.store::<BONDS, FRICTION>(i, &out);
         }
     }
-}
-
-/// A loop over the lanes whose body [`dispatch`] compiles for each build (the pair kernel, and
-/// the wall kernel of `wall_lanes`): its `run` must be `#[inline(always)]`, so that it is
-/// compiled into the build's function, with its instructions.
-pub(super) trait LaneLoop {
-    /// The loop.
-    fn run(self);
-}
-
-/// Runs `lanes` compiled for `set`.
-#[inline]
-#[allow(unsafe_code)]
-pub(super) fn dispatch<L: LaneLoop>(set: InstructionSet, lanes: L) {
-    #[cfg(target_arch = "x86_64")]
-    match set.width {
-        // SAFETY: a width above the baseline is only made where the processor has its
-        // instructions (`InstructionSet::available`).
-        Width::Avx512 => unsafe { loop_avx512(lanes) },
-        // SAFETY: as above.
-        Width::Avx2 => unsafe { loop_avx2(lanes) },
-        Width::Baseline => lanes.run(),
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    lanes.run();
-}
-
-/// A [`LaneLoop`] compiled for AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn loop_avx2<L: LaneLoop>(lanes: L) {
-    lanes.run();
-}
-
-/// A [`LaneLoop`] compiled for AVX-512 (F, DQ, VL): the [`LANES`] contacts of a batch in two
-/// vectors.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx512vl")]
-fn loop_avx512<L: LaneLoop>(lanes: L) {
-    lanes.run();
-}
-
-/// Which build of the kernel [`run`] takes. Made only by [`InstructionSet::detect`] and
-/// [`InstructionSet::available`], so that a build runs only where the processor has its
-/// instructions.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) struct InstructionSet {
-    width: Width,
-}
-
-/// The kernel's builds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Width {
-    /// The build's own target (x86-64: SSE2, two contacts per instruction).
-    Baseline,
-    /// AVX2: four contacts per instruction.
-    Avx2,
-    /// AVX-512 (F, DQ, VL): eight contacts per instruction.
-    Avx512,
-}
-
-/// How many of [`Width::ALL`], narrowest first, the kernel may take ([`limit_kernel`]): all of
-/// them unless the run asked for fewer.
-static ALLOWED_WIDTHS: AtomicUsize = AtomicUsize::new(Width::ALL.len());
-
-impl Width {
-    /// Every build, narrowest first.
-    const ALL: [Self; 3] = [Self::Baseline, Self::Avx2, Self::Avx512];
-
-    /// The build's name.
-    fn name(self) -> &'static str {
-        match self {
-            Self::Baseline => "baseline",
-            Self::Avx2 => "avx2",
-            Self::Avx512 => "avx512",
-        }
-    }
-
-    /// The widest build this processor runs among the first `allowed` of [`Width::ALL`] (at
-    /// least the baseline).
-    fn widest(allowed: usize) -> Self {
-        Self::ALL[..allowed.clamp(1, Self::ALL.len())]
-            .iter()
-            .rev()
-            .copied()
-            .find(|width| width.runs())
-            .unwrap_or(Self::Baseline)
-    }
-
-    /// Whether this processor has the build's instructions.
-    fn runs(self) -> bool {
-        match self {
-            Self::Baseline => true,
-            #[cfg(target_arch = "x86_64")]
-            Self::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
-            #[cfg(target_arch = "x86_64")]
-            Self::Avx512 => {
-                std::arch::is_x86_feature_detected!("avx512f")
-                    && std::arch::is_x86_feature_detected!("avx512dq")
-                    && std::arch::is_x86_feature_detected!("avx512vl")
-            }
-            #[cfg(not(target_arch = "x86_64"))]
-            _ => false,
-        }
-    }
-}
-
-impl InstructionSet {
-    /// The widest this processor runs, within the run's cap ([`limit_kernel`]).
-    #[must_use]
-    pub(super) fn detect() -> Self {
-        Self {
-            width: Width::widest(ALLOWED_WIDTHS.load(Ordering::Relaxed)),
-        }
-    }
-
-    /// Every build this processor runs, narrowest first.
-    #[must_use]
-    pub(super) fn available() -> Vec<Self> {
-        Width::ALL
-            .into_iter()
-            .filter(|width| width.runs())
-            .map(|width| Self { width })
-            .collect()
-    }
-
-    /// The build's name: `baseline`, `avx2` or `avx512`.
-    #[must_use]
-    pub(super) fn name(self) -> &'static str {
-        self.width.name()
-    }
-}
-
-/// Caps the contact kernel's build at `build` (`baseline`, `avx2` or `avx512`) for the rest of
-/// the process (`am-sim --simd`), for a processor on which the wider builds run slower (some
-/// lower their clock for 512-bit instructions) or to compare the builds. The results do not
-/// change: every build gives bitwise the same. Returns the build the kernel takes from now on:
-/// `build`, or the widest below it that this processor runs.
-///
-/// # Errors
-/// If `build` names no build of the kernel.
-pub fn limit_kernel(build: &str) -> Result<&'static str, String> {
-    let position = Width::ALL
-        .iter()
-        .position(|width| width.name() == build)
-        .ok_or_else(|| {
-            format!(
-                "{build:?} is not a build of the contact kernel ({})",
-                kernel_builds().join(", ")
-            )
-        })?;
-    ALLOWED_WIDTHS.store(position + 1, Ordering::Relaxed);
-    Ok(Width::widest(position + 1).name())
-}
-
-/// The names of the contact kernel's builds, narrowest first (whether or not this processor
-/// runs them): what [`limit_kernel`] accepts.
-#[must_use]
-pub fn kernel_builds() -> [&'static str; 3] {
-    Width::ALL.map(Width::name)
-}
-
-/// The build the contact kernel takes: `baseline`, `avx2` or `avx512`.
-#[must_use]
-pub fn kernel_build() -> &'static str {
-    InstructionSet::detect().name()
 }
 
 /// Runs the laws over every lane with the kernel built for `set`, the contacts acting over
@@ -1102,26 +935,6 @@ pub(in crate::forces) mod tests {
             sliding > 0 && sticking > 0,
             "{sliding} sliding, {sticking} sticking"
         );
-    }
-
-    /// A cap keeps the kernel at or below it, never below the baseline, and takes the widest
-    /// build the processor runs within it.
-    #[test]
-    fn a_cap_on_the_builds_takes_the_widest_the_processor_runs_within_it() {
-        let runs: Vec<Width> = Width::ALL.into_iter().filter(|w| w.runs()).collect();
-        assert_eq!(Width::widest(0), Width::Baseline);
-        assert_eq!(Width::widest(1), Width::Baseline);
-        assert_eq!(Width::widest(Width::ALL.len()), *runs.last().unwrap());
-        assert_eq!(Width::widest(usize::MAX), *runs.last().unwrap());
-        for allowed in 1..=Width::ALL.len() {
-            let widest = Width::widest(allowed);
-            assert!(widest.runs());
-            let position = Width::ALL.iter().position(|w| *w == widest).unwrap();
-            assert!(position < allowed, "{widest:?} beyond a cap of {allowed}");
-            // Nothing wider within the cap runs.
-            assert!(Width::ALL[position + 1..allowed].iter().all(|w| !w.runs()));
-        }
-        assert!(limit_kernel("avx1024").unwrap_err().contains("avx1024"));
     }
 
     #[test]

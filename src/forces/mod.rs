@@ -38,11 +38,11 @@ mod wall_lanes;
 
 use pair_pass::{HeatTargets, PairTargets};
 
+pub use crate::simd::{kernel_build, kernel_builds, limit_kernel};
 #[doc(hidden)]
 pub use lanes::KernelBench;
-pub use lanes::{kernel_build, kernel_builds, limit_kernel};
 
-use lanes::InstructionSet;
+use crate::simd::InstructionSet;
 
 /// `x_b − x_a` \[m\] of particles `a` and `b` at `position`, as its minimum image across
 /// periodic axes (M.77).

@@ -11,7 +11,7 @@
 
 use glam::DVec3;
 
-use super::lanes::{self, ContactInput, ContactLanes, InstructionSet, LANES, PairMaterial};
+use super::lanes::{self, ContactInput, ContactLanes, LANES, PairMaterial};
 use super::{ForceSummary, pair_separation};
 use crate::contact::BondState;
 use crate::contact::tangential::TangentialSpring;
@@ -22,6 +22,7 @@ use crate::particles::Particles;
 use crate::scatter::{
     Member, NearTokens, Opened, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
 };
+use crate::simd::InstructionSet;
 use crate::thermal::{self, HeatSums, ThermalModel};
 
 /// What the pair pass writes, shared by the concurrent slabs of a colour phase.

@@ -7,12 +7,13 @@
 
 use glam::DVec3;
 
-use super::lanes::{InstructionSet, LANES};
+use super::lanes::LANES;
 use super::wall_lanes::{self, WallInput, WallLanes};
 use super::{ForceSummary, PassHeat, wall_overlap};
 use crate::model::Model;
 use crate::particles::{Particles, Rotation};
 use crate::scatter::{self, Member, ParticleChunk, PerParticle, Scatter};
+use crate::simd::InstructionSet;
 use crate::thermal::{self, HeatSums, ThermalModel};
 use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
 

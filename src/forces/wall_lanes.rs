@@ -12,10 +12,11 @@
 
 use glam::DVec3;
 
-use super::lanes::{InstructionSet, LANES, Lane, Lane3, LaneLoop, dispatch};
+use super::lanes::{LANES, Lane, Lane3};
 use super::{TangentialContact, tangential_step};
 use crate::contact::tangential::TangentialSpring;
 use crate::contact::{self, FrictionParams, PairKinematics, rolling};
+use crate::simd::{InstructionSet, Kernel, dispatch};
 
 /// What the laws need of one particle touching one plane wall.
 #[derive(Debug, Clone, Copy, Default)]
@@ -228,7 +229,7 @@ struct WallKernel<'l, const FRICTION: bool, const ROLLING: bool> {
     lanes: &'l mut WallLanes,
 }
 
-impl<const FRICTION: bool, const ROLLING: bool> LaneLoop for WallKernel<'_, FRICTION, ROLLING> {
+impl<const FRICTION: bool, const ROLLING: bool> Kernel for WallKernel<'_, FRICTION, ROLLING> {
     #[inline(always)]
     fn run(self) {
         for i in 0..LANES {

@@ -1,0 +1,201 @@
+//! The vector builds of the step's hot loops, chosen at run time.
+//!
+//! The binary is built for generic x86-64 (SSE2, two `f64` per instruction), so that speed
+//! figures are about the code, not the build flags. A loop written as a `Kernel` is compiled
+//! three times, for the baseline, AVX2 (four `f64` per instruction) and AVX-512 (eight), and
+//! `dispatch` runs the widest this processor has (`InstructionSet::detect`, within the cap of
+//! `am-sim --simd`, [`limit_kernel`]). The builds do the same IEEE operations in the same
+//! order (Rust never fuses a multiply and an add by itself), so they give bitwise the same
+//! results: the choice changes speed only.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// A loop whose body [`dispatch`] compiles for each build (the pair and wall kernels of
+/// `forces`, the kicks and drift of `integrate`): its `run` must be `#[inline(always)]`, so that
+/// it is compiled into the build's function, with its instructions.
+pub(crate) trait Kernel {
+    /// The loop.
+    fn run(self);
+}
+
+/// Runs `kernel` compiled for `set`.
+#[inline]
+#[allow(unsafe_code)]
+pub(crate) fn dispatch<K: Kernel>(set: InstructionSet, kernel: K) {
+    #[cfg(target_arch = "x86_64")]
+    match set.width {
+        // SAFETY: a width above the baseline is only made where the processor has its
+        // instructions (`InstructionSet::available`).
+        Width::Avx512 => unsafe { loop_avx512(kernel) },
+        // SAFETY: as above.
+        Width::Avx2 => unsafe { loop_avx2(kernel) },
+        Width::Baseline => kernel.run(),
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    kernel.run();
+}
+
+/// A [`Kernel`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn loop_avx2<K: Kernel>(kernel: K) {
+    kernel.run();
+}
+
+/// A [`Kernel`] compiled for AVX-512 (F, DQ, VL): eight `f64` per instruction.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx512vl")]
+fn loop_avx512<K: Kernel>(kernel: K) {
+    kernel.run();
+}
+
+/// Which build the kernels take. Made only by [`InstructionSet::detect`] and
+/// [`InstructionSet::available`], so that a build runs only where the processor has its
+/// instructions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct InstructionSet {
+    width: Width,
+}
+
+/// The builds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Width {
+    /// The build's own target (x86-64: SSE2, two contacts per instruction).
+    Baseline,
+    /// AVX2: four contacts per instruction.
+    Avx2,
+    /// AVX-512 (F, DQ, VL): eight contacts per instruction.
+    Avx512,
+}
+
+/// How many of [`Width::ALL`], narrowest first, the kernels may take ([`limit_kernel`]): all of
+/// them unless the run asked for fewer.
+static ALLOWED_WIDTHS: AtomicUsize = AtomicUsize::new(Width::ALL.len());
+
+impl Width {
+    /// Every build, narrowest first.
+    const ALL: [Self; 3] = [Self::Baseline, Self::Avx2, Self::Avx512];
+
+    /// The build's name.
+    fn name(self) -> &'static str {
+        match self {
+            Self::Baseline => "baseline",
+            Self::Avx2 => "avx2",
+            Self::Avx512 => "avx512",
+        }
+    }
+
+    /// The widest build this processor runs among the first `allowed` of [`Width::ALL`] (at
+    /// least the baseline).
+    fn widest(allowed: usize) -> Self {
+        Self::ALL[..allowed.clamp(1, Self::ALL.len())]
+            .iter()
+            .rev()
+            .copied()
+            .find(|width| width.runs())
+            .unwrap_or(Self::Baseline)
+    }
+
+    /// Whether this processor has the build's instructions.
+    fn runs(self) -> bool {
+        match self {
+            Self::Baseline => true,
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx512 => {
+                std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512dq")
+                    && std::arch::is_x86_feature_detected!("avx512vl")
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
+        }
+    }
+}
+
+impl InstructionSet {
+    /// The widest this processor runs, within the run's cap ([`limit_kernel`]).
+    #[must_use]
+    pub(crate) fn detect() -> Self {
+        Self {
+            width: Width::widest(ALLOWED_WIDTHS.load(Ordering::Relaxed)),
+        }
+    }
+
+    /// Every build this processor runs, narrowest first.
+    #[must_use]
+    pub(crate) fn available() -> Vec<Self> {
+        Width::ALL
+            .into_iter()
+            .filter(|width| width.runs())
+            .map(|width| Self { width })
+            .collect()
+    }
+
+    /// The build's name: `baseline`, `avx2` or `avx512`.
+    #[must_use]
+    pub(crate) fn name(self) -> &'static str {
+        self.width.name()
+    }
+}
+
+/// Caps the kernels' build at `build` (`baseline`, `avx2` or `avx512`) for the rest of
+/// the process (`am-sim --simd`), for a processor on which the wider builds run slower (some
+/// lower their clock for 512-bit instructions) or to compare the builds. The results do not
+/// change: every build gives bitwise the same. Returns the build the kernels take from now on:
+/// `build`, or the widest below it that this processor runs.
+///
+/// # Errors
+/// If `build` names no build.
+pub fn limit_kernel(build: &str) -> Result<&'static str, String> {
+    let position = Width::ALL
+        .iter()
+        .position(|width| width.name() == build)
+        .ok_or_else(|| {
+            format!(
+                "{build:?} is not a build of the step's vector kernels ({})",
+                kernel_builds().join(", ")
+            )
+        })?;
+    ALLOWED_WIDTHS.store(position + 1, Ordering::Relaxed);
+    Ok(Width::widest(position + 1).name())
+}
+
+/// The names of the builds, narrowest first (whether or not this processor
+/// runs them): what [`limit_kernel`] accepts.
+#[must_use]
+pub fn kernel_builds() -> [&'static str; 3] {
+    Width::ALL.map(Width::name)
+}
+
+/// The build the kernels take: `baseline`, `avx2` or `avx512`.
+#[must_use]
+pub fn kernel_build() -> &'static str {
+    InstructionSet::detect().name()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A cap keeps the kernels at or below it, never below the baseline, and takes the widest
+    /// build the processor runs within it.
+    #[test]
+    fn a_cap_on_the_builds_takes_the_widest_the_processor_runs_within_it() {
+        let runs: Vec<Width> = Width::ALL.into_iter().filter(|w| w.runs()).collect();
+        assert_eq!(Width::widest(0), Width::Baseline);
+        assert_eq!(Width::widest(1), Width::Baseline);
+        assert_eq!(Width::widest(Width::ALL.len()), *runs.last().unwrap());
+        assert_eq!(Width::widest(usize::MAX), *runs.last().unwrap());
+        for allowed in 1..=Width::ALL.len() {
+            let widest = Width::widest(allowed);
+            assert!(widest.runs());
+            let position = Width::ALL.iter().position(|w| *w == widest).unwrap();
+            assert!(position < allowed, "{widest:?} beyond a cap of {allowed}");
+            // Nothing wider within the cap runs.
+            assert!(Width::ALL[position + 1..allowed].iter().all(|w| !w.runs()));
+        }
+        assert!(limit_kernel("avx1024").unwrap_err().contains("avx1024"));
+    }
+}
