@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # End-to-end check of the HDF5/XDMF output as a user opens it: runs a shortened laser track
 # (particles melt and bond), then checks the file with h5py and, if pvpython is installed, with
-# all three XDMF readers of ParaView. Needs `scripts/setup --checks`.
+# all three XDMF readers of ParaView; then runs the worked example of docs/post-processing.md and
+# checks that its snippets print what the page says (scripts/check_docs.py). Needs
+# `scripts/setup --checks`.
 # Usage: scripts/check_output.sh [OUT_DIR]
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -19,4 +21,6 @@ else
     echo "check_output: pvpython not found (scripts/setup --checks installs ParaView): ParaView check skipped" >&2
     exit 1
 fi
+# The worked example of docs/post-processing.md: its snippets print what the page says.
+python3 "$here/check_docs.py" "$out/docs"
 echo "check_output: all passed ($out)"
