@@ -31,11 +31,17 @@ pub type Sums<'a> = Option<&'a mut [HeatSums]>;
 /// sweep of the arrays instead of five, seven with heat. Returns the largest speed of the drift,
 /// which bounds every particle's displacement (the neighbour list's rebuild test and the near
 /// lists' refresh test sum it).
+///
+/// With [`Opening::AfterClosingKick`] the pass first gives the velocities and spins the last
+/// step's closing half kick (M.32, M.62), with the same forces and torques: `v + k F + k F`
+/// evaluated as `(v + k F) + k F`, bitwise what the closing kick followed by this pass gives,
+/// with one sweep of the arrays fewer (`Simulation::advance`).
 pub fn kick_drift(
     particles: &mut Particles,
     rotation: Option<&mut Rotation>,
     sums: Sums<'_>,
     (dt, gravity): (f64, DVec3),
+    opening: Opening,
 ) -> Drift {
     let Particles {
         position,
@@ -69,30 +75,35 @@ pub fn kick_drift(
             let mut max_speed_squared = 0.0;
             let set = InstructionSet::detect();
             let mass = &mass[first..first + position.len()];
-            dispatch(
-                set,
-                KickDrift {
-                    position,
-                    velocity,
-                    force,
-                    mass,
-                    dt,
-                    gravity,
-                    max_speed_squared: &mut max_speed_squared,
-                },
-            );
+            let kick_drift = KickDrift {
+                position,
+                velocity,
+                force,
+                mass,
+                dt,
+                gravity,
+                max_speed_squared: &mut max_speed_squared,
+            };
+            let folded = opening == Opening::AfterClosingKick;
+            if folded {
+                dispatch(set, Folded(kick_drift));
+            } else {
+                dispatch(set, kick_drift);
+            }
             if let (Some(omega), Some(torque)) = angular {
                 let radius = &radius[first..first + omega.len()];
-                dispatch(
-                    set,
-                    AngularKick {
-                        omega,
-                        torque,
-                        mass,
-                        radius,
-                        dt,
-                    },
-                );
+                let kick = AngularKick {
+                    omega,
+                    torque,
+                    mass,
+                    radius,
+                    dt,
+                };
+                if folded {
+                    dispatch(set, Folded(kick));
+                } else {
+                    dispatch(set, kick);
+                }
                 torque.fill(DVec3::ZERO);
             }
             if let Some(sums) = sums {
@@ -104,6 +115,16 @@ pub fn kick_drift(
     Drift {
         max_speed: max_speed_squared.sqrt(),
     }
+}
+
+/// Whether [`kick_drift`] opens a step after a complete one, or also gives the last step's
+/// closing half kick, which was left to it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Opening {
+    /// The velocities and spins are those at the end of the last step (after its closing kick).
+    AfterStep,
+    /// The last step's closing kick is still to come: the pass gives it first.
+    AfterClosingKick,
 }
 
 /// What the drift of [`kick_drift`] reports.
@@ -204,6 +225,32 @@ struct KickDrift<'a> {
 impl Kernel for KickDrift<'_> {
     #[inline(always)]
     fn run(self) {
+        self.kick_and_drift::<false>();
+    }
+}
+
+/// A kernel that first gives the last step's closing half kick, then its own (see
+/// [`Opening::AfterClosingKick`]).
+struct Folded<K>(K);
+
+impl Kernel for Folded<KickDrift<'_>> {
+    #[inline(always)]
+    fn run(self) {
+        self.0.kick_and_drift::<true>();
+    }
+}
+
+impl Kernel for Folded<AngularKick<'_>> {
+    #[inline(always)]
+    fn run(self) {
+        self.0.kick::<true>();
+    }
+}
+
+impl KickDrift<'_> {
+    /// The kick (twice if `FOLDED`, the closing kick's first) and the drift.
+    #[inline(always)]
+    fn kick_and_drift<const FOLDED: bool>(self) {
         let Self {
             position,
             velocity,
@@ -227,7 +274,8 @@ impl Kernel for KickDrift<'_> {
                 .zip(components_mut(v).iter_mut())
                 .zip(components(f).iter().zip(kicks))
             {
-                let velocity = *v + kick * f;
+                let closed = if FOLDED { *v + kick * f } else { *v };
+                let velocity = closed + kick * f;
                 *v = velocity;
                 *x += dt * velocity;
             }
@@ -239,6 +287,57 @@ impl Kernel for KickDrift<'_> {
             }
         }
         *max_speed_squared = fastest;
+    }
+}
+
+/// The lowest particle whose force is NaN or infinite, if any: the test the closing kick makes
+/// ([`kick`]), for a step whose closing kick is left to the next opening pass
+/// (`Simulation::advance`), which must not run on such forces.
+#[must_use]
+pub fn first_non_finite_force(force: &[DVec3]) -> Option<usize> {
+    let chunks: Vec<&[DVec3]> = force.chunks(CHUNK).collect();
+    let lowest = |a: Option<usize>, b: Option<usize>| match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    };
+    each_chunk(
+        chunks,
+        crate::worth_parallel(force.len()),
+        None,
+        lowest,
+        |first, chunk| {
+            let mut finite = true;
+            dispatch(
+                InstructionSet::detect(),
+                FiniteForces {
+                    force: chunk,
+                    finite: &mut finite,
+                },
+            );
+            (!finite).then(|| {
+                first
+                    + chunk
+                        .iter()
+                        .position(|f| !f.is_finite())
+                        .expect("a chunk with a non-finite force")
+            })
+        },
+    )
+}
+
+/// Whether every component of `force` is finite, into `finite`.
+struct FiniteForces<'a> {
+    force: &'a [DVec3],
+    finite: &'a mut bool,
+}
+
+impl Kernel for FiniteForces<'_> {
+    #[inline(always)]
+    fn run(self) {
+        // `&`, not `&&`: no branch per component.
+        *self.finite = components(self.force)
+            .iter()
+            .fold(true, |finite, f| finite & f.is_finite());
     }
 }
 
@@ -298,6 +397,14 @@ struct AngularKick<'a> {
 impl Kernel for AngularKick<'_> {
     #[inline(always)]
     fn run(self) {
+        self.kick::<false>();
+    }
+}
+
+impl AngularKick<'_> {
+    /// The half kick (twice if `FOLDED`: see [`Opening::AfterClosingKick`]).
+    #[inline(always)]
+    fn kick<const FOLDED: bool>(self) {
         let Self {
             omega,
             torque,
@@ -321,7 +428,8 @@ impl Kernel for AngularKick<'_> {
                 .iter_mut()
                 .zip(components(t).iter().zip(kicks))
             {
-                *w += kick * t;
+                let closed = if FOLDED { *w + kick * t } else { *w };
+                *w = closed + kick * t;
             }
         }
     }
@@ -475,7 +583,13 @@ mod tests {
         }
         let (start, force) = (particles.velocity.clone(), particles.force.clone());
         let dt = 1e-3;
-        kick_drift(&mut particles, None, None, (dt, DVec3::ZERO));
+        kick_drift(
+            &mut particles,
+            None,
+            None,
+            (dt, DVec3::ZERO),
+            Opening::AfterStep,
+        );
         particles.force.clone_from(&force);
         assert_eq!(kick(&mut particles, None, dt), None);
         for k in 0..count {
@@ -537,6 +651,43 @@ mod tests {
             }
             assert_eq!(fastest, expected_fastest, "{}", set.name());
 
+            // Folded: the last step's closing kick first, with the same forces (M.32, M.30).
+            let (mut x, mut v, mut f) = (position.clone(), velocity.clone(), force.clone());
+            dispatch(
+                set,
+                Folded(KickDrift {
+                    position: &mut x,
+                    velocity: &mut v,
+                    force: &mut f,
+                    mass: &mass,
+                    dt,
+                    gravity,
+                    max_speed_squared: &mut fastest,
+                }),
+            );
+            for k in 0..count {
+                let kick = 0.5 * dt / mass[k];
+                let half = (velocity[k] + kick * force[k]) + kick * force[k];
+                assert_eq!(v[k], half, "{}: folded v of {k}", set.name());
+                assert_eq!(x[k], position[k] + dt * half, "{}: folded x of {k}", set.name());
+            }
+            let mut w = omega.clone();
+            dispatch(
+                set,
+                Folded(AngularKick {
+                    omega: &mut w,
+                    torque: &torque,
+                    mass: &mass,
+                    radius: &radius,
+                    dt,
+                }),
+            );
+            for k in 0..count {
+                let kick = 0.5 * dt / rolling::sphere_inertia(mass[k], radius[k]);
+                let expected = (omega[k] + kick * torque[k]) + kick * torque[k];
+                assert_eq!(w[k], expected, "{}: folded ω of {k}", set.name());
+            }
+
             let mut finite = false;
             let mut v = velocity.clone();
             dispatch(
@@ -590,6 +741,22 @@ mod tests {
         }
     }
 
+    /// The test a step makes of its forces when its closing kick is left to the next opening
+    /// pass finds the lowest non-finite force in whichever chunk it is, and nothing in finite
+    /// forces.
+    #[test]
+    fn the_lowest_non_finite_force_is_found_in_any_chunk() {
+        let count = 3 * CHUNK + 17;
+        let mut force: Vec<DVec3> = (0..count).map(|k| DVec3::splat(k as f64)).collect();
+        assert_eq!(first_non_finite_force(&force), None);
+        force[count - 1].z = f64::INFINITY;
+        assert_eq!(first_non_finite_force(&force), Some(count - 1));
+        force[CHUNK + 5].y = f64::NAN;
+        assert_eq!(first_non_finite_force(&force), Some(CHUNK + 5));
+        force[2].x = f64::NEG_INFINITY;
+        assert_eq!(first_non_finite_force(&force[..10]), Some(2));
+    }
+
     #[test]
     fn one_pass_kicks_drifts_and_turns_and_the_kick_finds_non_finite_forces() {
         // Below and above the size from which the passes run in parallel, with the particle
@@ -606,7 +773,13 @@ mod tests {
                     .collect();
                 let sums = Some(heat_sums.as_mut_slice());
                 let gravity = DVec3::new(0.0, 0.0, -2.0);
-                let drift = kick_drift(&mut particles, Some(&mut rotation), sums, (dt, gravity));
+                let drift = kick_drift(
+                    &mut particles,
+                    Some(&mut rotation),
+                    sums,
+                    (dt, gravity),
+                    Opening::AfterStep,
+                );
                 // The fastest particle is the last, |v| = (count − 1) √(1 + 1/16); the square
                 // root of the largest |v|² is exactly the largest |v| (rounding is monotone).
                 let fastest = particles.velocity[count - 1].length();
@@ -639,7 +812,13 @@ mod tests {
                     assert!((w - 0.5 * kf / 0.4).abs() <= 1e-12 * kf, "ω of {k}: {w}");
                 }
                 // Without rotation the torques are neither used nor cleared.
-                kick_drift(&mut particles, None, None, (dt, DVec3::ZERO));
+                kick_drift(
+                    &mut particles,
+                    None,
+                    None,
+                    (dt, DVec3::ZERO),
+                    Opening::AfterStep,
+                );
                 assert!(particles.force.iter().all(|f| *f == DVec3::ZERO));
                 assert_eq!(rotation.torque, refilled.torque);
                 for k in 0..count {

@@ -146,3 +146,73 @@ fn friction_runs_with_different_skins_agree_to_round_off() {
     assert!(dv < 1e-4 * speed, "velocities differ by {dv} m/s");
     assert!(dw < 1e-4 * spin, "spins differ by {dw} rad/s");
 }
+
+/// `Simulation::advance` leaves each step's closing half kick to the next step's opening pass
+/// within a call. Runs in calls of irregular sizes (1 to 64 steps, so that calls end at every
+/// phase of the neighbour-list builds and near-list refreshes) must be bitwise the same as
+/// step-by-step runs, at every call's end, for the full coupled step (laser, melting, bonding)
+/// and for friction with rotation.
+#[test]
+fn advance_in_calls_is_bitwise_the_same_as_step_by_step() {
+    let laser_track =
+        common::scene_text("laser_track.toml").replace("duration_s = 3.5e-3", "duration_s = 6e-4");
+    let column = common::scene_text("column.toml")
+        .replace("duration_s = 0.1", "duration_s = 0.005")
+        .replace(
+            "damping_ratio = 0.3 ",
+            "friction_coefficient = 0.5\nrolling_friction_coefficient = 0.05\ndamping_ratio = 0.3 ",
+        );
+    for text in [laser_track, column] {
+        // Two simulations made from the text (a clone would record its near lists once more).
+        let mut by_step = common::simulation(&text);
+        let mut in_calls = common::simulation(&text);
+        let bits = |s: &Simulation| -> Vec<u64> {
+            let mut bits = common::position_velocity_bits(s);
+            if let Some(r) = &s.rotation {
+                bits.extend(
+                    r.angular_velocity
+                        .iter()
+                        .flat_map(|w| w.to_array())
+                        .map(f64::to_bits),
+                );
+            }
+            if let Some(t) = &s.thermal {
+                bits.extend(t.enthalpy.iter().map(|e| e.to_bits()));
+            }
+            bits
+        };
+        let sizes = [1, 7, 64, 2, 13, 31, 3, 50];
+        let mut calls = 0;
+        while in_calls.step < in_calls.model.steps {
+            let size = sizes[calls % sizes.len()].min(in_calls.model.steps - in_calls.step);
+            assert_eq!(in_calls.advance(size, || true), size, "no guard trips here");
+            for _ in 0..size {
+                by_step.step();
+            }
+            assert_eq!(in_calls.step, by_step.step);
+            assert_eq!(
+                bits(&in_calls),
+                bits(&by_step),
+                "after step {}",
+                by_step.step
+            );
+            calls += 1;
+        }
+        assert_eq!(in_calls.diagnostics(), by_step.diagnostics());
+        assert_eq!(in_calls.bonds(), by_step.bonds());
+    }
+}
+
+/// `keep_going` ends a call after the step on which it turns false (the run loop's ^C).
+#[test]
+fn advance_stops_when_told() {
+    let text = common::scene_text("column.toml").replace("duration_s = 0.1", "duration_s = 0.001");
+    let mut sim = common::simulation(&text);
+    let calls = std::cell::Cell::new(0);
+    let done = sim.advance(100, || {
+        calls.set(calls.get() + 1);
+        calls.get() < 5
+    });
+    assert_eq!(done, 5);
+    assert_eq!(sim.step, 5);
+}

@@ -147,8 +147,11 @@ pub fn settle(
     });
     while report.steps < settings.max_steps {
         let chunk = settings.check_every.min(settings.max_steps - report.steps);
-        for _ in 0..chunk {
-            sim.step();
+        // Without the decay nothing acts between the steps: they run in one call, which leaves
+        // each closing kick to the next opening pass (`Simulation::advance`).
+        let per_call = if decay.is_some() { 1 } else { chunk };
+        for _ in 0..chunk / per_call {
+            sim.advance(per_call, || true);
             if let Some(trip) = sim.guard_trip() {
                 report.stopped = Some(trip);
                 report.steps = sim.step;

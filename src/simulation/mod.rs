@@ -721,6 +721,48 @@ impl Simulation {
 
     /// Advances one time step in the documented order.
     pub fn step(&mut self) {
+        self.advance(1, || true);
+    }
+
+    /// Advances up to `count` time steps in the documented order, as many calls of
+    /// [`Simulation::step`] would, with bitwise the same results. It stops early after a step
+    /// whose per-step guard trips ([`Simulation::guard_trip`]) or after which `keep_going()`
+    /// is false, and returns the number of steps taken.
+    ///
+    /// Within the call a step's closing half kick (M.32) is left to the next step's opening
+    /// pass, which gives it first with the same forces ([`integrate::Opening`]): one sweep of
+    /// the velocities, forces, spins and torques fewer per step (4.5 % of the 19.2k LIGGGHTS
+    /// bed's step). The state between the steps of one call is therefore never seen; every
+    /// call returns with its last step complete. Before a step's kick is left to the next pass
+    /// its forces are tested for NaN and infinities (the test the closing kick makes): a
+    /// non-finite force ends the call with that step's closing kick given alone, as `step`
+    /// gives it, so that the guard names the same step and particle.
+    pub fn advance(&mut self, count: u64, keep_going: impl Fn() -> bool) -> u64 {
+        let dt = self.model.dt;
+        let mut opening = integrate::Opening::AfterStep;
+        for done in 1..=count {
+            self.open_step(opening);
+            self.close_forces();
+            // Found anew at every step, by its closing kick or by the test below.
+            self.non_finite_force = None;
+            self.step += 1;
+            #[allow(clippy::cast_precision_loss)]
+            let time = self.step as f64 * dt; // no accumulated round-off over millions of steps
+            self.time = time;
+            let last = done == count || self.guard_trip().is_some() || !keep_going();
+            if last || integrate::first_non_finite_force(&self.particles.force).is_some() {
+                self.non_finite_force =
+                    integrate::kick(&mut self.particles, self.rotation.as_mut(), dt);
+                return done;
+            }
+            opening = integrate::Opening::AfterClosingKick;
+        }
+        0
+    }
+
+    /// Steps 1-3 (see the module documentation): the half kick and the drift (after the last
+    /// step's closing kick, if `opening` says it was left to this pass), the rebuild, the laser.
+    fn open_step(&mut self, opening: integrate::Opening) {
         let dt = self.model.dt;
         // The force pass's heat sums are zeroed with the forces (its `cleared`).
         let sums = self.thermal.as_mut().map(|t| t.heat_sums.as_mut_slice());
@@ -729,6 +771,7 @@ impl Simulation {
             self.rotation.as_mut(),
             sums,
             (dt, self.model.gravity),
+            opening,
         );
         self.near_travel += dt * drift.max_speed;
         self.near_steps += 1;
@@ -737,6 +780,10 @@ impl Simulation {
             self.rebuild_neighbors();
         }
         self.absorb_laser();
+    }
+
+    /// Steps 4-6: the forces and the temperatures.
+    fn close_forces(&mut self) {
         // The opening pass left the forces at the weights and the torques and heat sums at zero
         // (a rebuild permutes and drops particles with their forces).
         let summary = self.compute_forces(Evaluation::Step);
@@ -744,11 +791,6 @@ impl Simulation {
         self.force_summary = summary;
         let first_flows = self.thermal.is_some().then_some(summary.max_heat_rate);
         self.advance_temperatures(first_flows);
-        self.non_finite_force = integrate::kick(&mut self.particles, self.rotation.as_mut(), dt);
-        self.step += 1;
-        #[allow(clippy::cast_precision_loss)]
-        let time = self.step as f64 * dt; // no accumulated round-off over millions of steps
-        self.time = time;
     }
 
     /// Bond state of the pair of particle ids `(a, b)` (in either order); `Unbonded` if the pair
