@@ -85,11 +85,7 @@ pub fn kick_drift(
                 max_speed_squared: &mut max_speed_squared,
             };
             let folded = opening == Opening::AfterClosingKick;
-            if folded {
-                dispatch(set, Folded(kick_drift));
-            } else {
-                dispatch(set, kick_drift);
-            }
+            dispatch_folded(set, kick_drift, folded);
             if let (Some(omega), Some(torque)) = angular {
                 let radius = &radius[first..first + omega.len()];
                 let kick = AngularKick {
@@ -99,11 +95,7 @@ pub fn kick_drift(
                     radius,
                     dt,
                 };
-                if folded {
-                    dispatch(set, Folded(kick));
-                } else {
-                    dispatch(set, kick);
-                }
+                dispatch_folded(set, kick, folded);
                 torque.fill(DVec3::ZERO);
             }
             if let Some(sums) = sums {
@@ -206,9 +198,9 @@ pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64)
 /// forces are left at the weights `m gravity` \[N\], and the largest |v(t + dt/2)|² goes to
 /// `max_speed_squared` \[m²/s²\].
 ///
-/// The three components of a particle's vectors lie side by side in memory, so the kick and the
-/// drift run over the components as flat arrays (`bytemuck`), each component with its
-/// particle's factor `(dt/2)/m` spread to it first ([`spread`]): the compiler then does four or
+/// The three components of a particle's vectors lie side by side in memory, so the kicks and the
+/// drift run over the components as flat arrays (`bytemuck`), block by block, each component
+/// with its particle's factor spread to it first ([`kick_block`]): the compiler then does four or
 /// eight components per instruction in the AVX2 and AVX-512 builds, where over the particles'
 /// vectors it did one. The operations are those of the per-particle formula, in its order, so
 /// every build gives bitwise the same (tested below).
@@ -233,6 +225,19 @@ impl Kernel for KickDrift<'_> {
 /// [`Opening::AfterClosingKick`]).
 struct Folded<K>(K);
 
+/// Runs `kernel` built for `set`, [`Folded`] if `folded`.
+#[inline(always)]
+fn dispatch_folded<K: Kernel>(set: InstructionSet, kernel: K, folded: bool)
+where
+    Folded<K>: Kernel,
+{
+    if folded {
+        dispatch(set, Folded(kernel));
+    } else {
+        dispatch(set, kernel);
+    }
+}
+
 impl Kernel for Folded<KickDrift<'_>> {
     #[inline(always)]
     fn run(self) {
@@ -251,42 +256,28 @@ impl KickDrift<'_> {
     /// The kick (twice if `FOLDED`, the closing kick's first) and the drift.
     #[inline(always)]
     fn kick_and_drift<const FOLDED: bool>(self) {
-        let Self {
-            position,
-            velocity,
-            force,
-            mass,
-            dt,
-            gravity,
-            max_speed_squared,
-        } = self;
-        let (mut kicks, mut spread_kicks) = ([0.0; BLOCK], [0.0; 3 * BLOCK]);
+        let mut scratch = KickScratch::default();
         let mut fastest: f64 = 0.0;
-        for (((x, v), f), mass) in position
+        for (((x, v), f), mass) in self
+            .position
             .chunks_mut(BLOCK)
-            .zip(velocity.chunks_mut(BLOCK))
-            .zip(force.chunks_mut(BLOCK))
-            .zip(mass.chunks(BLOCK))
+            .zip(self.velocity.chunks_mut(BLOCK))
+            .zip(self.force.chunks_mut(BLOCK))
+            .zip(self.mass.chunks(BLOCK))
         {
-            let kicks = spread(half_kicks(dt, mass, &mut kicks), &mut spread_kicks);
-            for ((x, v), (&f, &kick)) in components_mut(x)
-                .iter_mut()
-                .zip(components_mut(v).iter_mut())
-                .zip(components(f).iter().zip(kicks))
-            {
-                let closed = if FOLDED { *v + kick * f } else { *v };
-                let velocity = closed + kick * f;
-                *v = velocity;
-                *x += dt * velocity;
+            let kicks = half_kicks(self.dt, mass, &mut scratch.factors);
+            kick_block::<FOLDED>(v, f, kicks, &mut scratch.spread);
+            for (x, &v) in components_mut(x).iter_mut().zip(components(v)) {
+                *x += self.dt * v;
             }
             for (f, &mass) in f.iter_mut().zip(mass) {
-                *f = mass * gravity;
+                *f = mass * self.gravity;
             }
             for v in v.iter() {
                 fastest = fastest.max(v.length_squared());
             }
         }
-        *max_speed_squared = fastest;
+        *self.max_speed_squared = fastest;
     }
 }
 
@@ -334,10 +325,7 @@ struct FiniteForces<'a> {
 impl Kernel for FiniteForces<'_> {
     #[inline(always)]
     fn run(self) {
-        // `&`, not `&&`: no branch per component.
-        *self.finite = components(self.force)
-            .iter()
-            .fold(true, |finite, f| finite & f.is_finite());
+        *self.finite = all_finite(self.force);
     }
 }
 
@@ -354,31 +342,17 @@ struct Kick<'a> {
 impl Kernel for Kick<'_> {
     #[inline(always)]
     fn run(self) {
-        let Self {
-            velocity,
-            force,
-            mass,
-            dt,
-            finite,
-        } = self;
-        let (mut kicks, mut spread_kicks) = ([0.0; BLOCK], [0.0; 3 * BLOCK]);
-        let mut all_finite = true;
-        for ((v, f), mass) in velocity
+        let mut scratch = KickScratch::default();
+        for ((v, f), mass) in self
+            .velocity
             .chunks_mut(BLOCK)
-            .zip(force.chunks(BLOCK))
-            .zip(mass.chunks(BLOCK))
+            .zip(self.force.chunks(BLOCK))
+            .zip(self.mass.chunks(BLOCK))
         {
-            let kicks = spread(half_kicks(dt, mass, &mut kicks), &mut spread_kicks);
-            for (v, (&f, &kick)) in components_mut(v)
-                .iter_mut()
-                .zip(components(f).iter().zip(kicks))
-            {
-                *v += kick * f;
-                // `&`, not `&&`: no branch per component.
-                all_finite &= f.is_finite();
-            }
+            let kicks = half_kicks(self.dt, mass, &mut scratch.factors);
+            kick_block::<false>(v, f, kicks, &mut scratch.spread);
         }
-        *finite = all_finite;
+        *self.finite = all_finite(self.force);
     }
 }
 
@@ -405,34 +379,66 @@ impl AngularKick<'_> {
     /// The half kick (twice if `FOLDED`: see [`Opening::AfterClosingKick`]).
     #[inline(always)]
     fn kick<const FOLDED: bool>(self) {
-        let Self {
-            omega,
-            torque,
-            mass,
-            radius,
-            dt,
-        } = self;
-        let (mut kicks, mut spread_kicks) = ([0.0; BLOCK], [0.0; 3 * BLOCK]);
-        for (((w, t), mass), radius) in omega
+        let mut scratch = KickScratch::default();
+        for (((w, t), mass), radius) in self
+            .omega
             .chunks_mut(BLOCK)
-            .zip(torque.chunks(BLOCK))
-            .zip(mass.chunks(BLOCK))
-            .zip(radius.chunks(BLOCK))
+            .zip(self.torque.chunks(BLOCK))
+            .zip(self.mass.chunks(BLOCK))
+            .zip(self.radius.chunks(BLOCK))
         {
-            let kicks = &mut kicks[..mass.len()];
+            let kicks = &mut scratch.factors[..mass.len()];
             for ((kick, &mass), &radius) in kicks.iter_mut().zip(mass).zip(radius) {
-                *kick = 0.5 * dt / rolling::sphere_inertia(mass, radius);
+                *kick = 0.5 * self.dt / rolling::sphere_inertia(mass, radius);
             }
-            let kicks = spread(kicks, &mut spread_kicks);
-            for (w, (&t, &kick)) in components_mut(w)
-                .iter_mut()
-                .zip(components(t).iter().zip(kicks))
-            {
-                let closed = if FOLDED { *w + kick * t } else { *w };
-                *w = closed + kick * t;
-            }
+            kick_block::<FOLDED>(w, t, kicks, &mut scratch.spread);
         }
     }
+}
+
+/// The scratch of a kick over blocks: a block's factors, and each spread to its three
+/// components.
+struct KickScratch {
+    factors: [f64; BLOCK],
+    spread: [f64; 3 * BLOCK],
+}
+
+impl Default for KickScratch {
+    fn default() -> Self {
+        Self {
+            factors: [0.0; BLOCK],
+            spread: [0.0; 3 * BLOCK],
+        }
+    }
+}
+
+/// One block's half kick, `vectors += factor × rates` (velocities by forces, spins by torques),
+/// component by component, with each particle's `factors` spread to its components; twice if
+/// `FOLDED`, as `(v + k r) + k r` (see [`Opening::AfterClosingKick`]).
+#[inline(always)]
+fn kick_block<const FOLDED: bool>(
+    vectors: &mut [DVec3],
+    rates: &[DVec3],
+    factors: &[f64],
+    spread_factors: &mut [f64; 3 * BLOCK],
+) {
+    let factors = spread(factors, spread_factors);
+    for (v, (&rate, &factor)) in components_mut(vectors)
+        .iter_mut()
+        .zip(components(rates).iter().zip(factors))
+    {
+        let closed = if FOLDED { *v + factor * rate } else { *v };
+        *v = closed + factor * rate;
+    }
+}
+
+/// Whether every component of `vectors` is finite.
+#[inline(always)]
+fn all_finite(vectors: &[DVec3]) -> bool {
+    // `&`, not `&&`: no branch per component.
+    components(vectors)
+        .iter()
+        .fold(true, |finite, c| finite & c.is_finite())
 }
 
 /// Each of `factors` three times, into `spread` (at least three times as long): the factor of
@@ -627,35 +633,11 @@ mod tests {
             .collect();
         let (dt, gravity) = (1.3e-7, DVec3::new(0.1, -0.2, -9.81));
         for set in InstructionSet::available() {
-            let (mut x, mut v, mut f) = (position.clone(), velocity.clone(), force.clone());
-            let mut fastest = 0.0;
-            dispatch(
-                set,
-                KickDrift {
-                    position: &mut x,
-                    velocity: &mut v,
-                    force: &mut f,
-                    mass: &mass,
-                    dt,
-                    gravity,
-                    max_speed_squared: &mut fastest,
-                },
-            );
-            let mut expected_fastest: f64 = 0.0;
-            for k in 0..count {
-                let half = velocity[k] + 0.5 * dt / mass[k] * force[k];
-                expected_fastest = expected_fastest.max(half.length_squared());
-                assert_eq!(v[k], half, "{}: v of {k}", set.name());
-                assert_eq!(x[k], position[k] + dt * half, "{}: x of {k}", set.name());
-                assert_eq!(f[k], mass[k] * gravity, "{}: weight of {k}", set.name());
-            }
-            assert_eq!(fastest, expected_fastest, "{}", set.name());
-
             // Folded: the last step's closing kick first, with the same forces (M.32, M.30).
-            let (mut x, mut v, mut f) = (position.clone(), velocity.clone(), force.clone());
-            dispatch(
-                set,
-                Folded(KickDrift {
+            for folded in [false, true] {
+                let (mut x, mut v, mut f) = (position.clone(), velocity.clone(), force.clone());
+                let mut fastest = 0.0;
+                let kick_drift = KickDrift {
                     position: &mut x,
                     velocity: &mut v,
                     force: &mut f,
@@ -663,29 +645,24 @@ mod tests {
                     dt,
                     gravity,
                     max_speed_squared: &mut fastest,
-                }),
-            );
-            for k in 0..count {
-                let kick = 0.5 * dt / mass[k];
-                let half = (velocity[k] + kick * force[k]) + kick * force[k];
-                assert_eq!(v[k], half, "{}: folded v of {k}", set.name());
-                assert_eq!(x[k], position[k] + dt * half, "{}: folded x of {k}", set.name());
-            }
-            let mut w = omega.clone();
-            dispatch(
-                set,
-                Folded(AngularKick {
-                    omega: &mut w,
-                    torque: &torque,
-                    mass: &mass,
-                    radius: &radius,
-                    dt,
-                }),
-            );
-            for k in 0..count {
-                let kick = 0.5 * dt / rolling::sphere_inertia(mass[k], radius[k]);
-                let expected = (omega[k] + kick * torque[k]) + kick * torque[k];
-                assert_eq!(w[k], expected, "{}: folded ω of {k}", set.name());
+                };
+                dispatch_folded(set, kick_drift, folded);
+                let mut expected_fastest: f64 = 0.0;
+                for k in 0..count {
+                    let kick = 0.5 * dt / mass[k];
+                    let closed = if folded {
+                        velocity[k] + kick * force[k]
+                    } else {
+                        velocity[k]
+                    };
+                    let half = closed + kick * force[k];
+                    expected_fastest = expected_fastest.max(half.length_squared());
+                    let name = format!("{}, folded {folded}", set.name());
+                    assert_eq!(v[k], half, "{name}: v of {k}");
+                    assert_eq!(x[k], position[k] + dt * half, "{name}: x of {k}");
+                    assert_eq!(f[k], mass[k] * gravity, "{name}: weight of {k}");
+                }
+                assert_eq!(fastest, expected_fastest, "{}", set.name());
             }
 
             let mut finite = false;
@@ -706,21 +683,26 @@ mod tests {
                 assert_eq!(v[k], expected, "{}: closing kick of {k}", set.name());
             }
 
-            let mut w = omega.clone();
-            dispatch(
-                set,
-                AngularKick {
+            for folded in [false, true] {
+                let mut w = omega.clone();
+                let kick = AngularKick {
                     omega: &mut w,
                     torque: &torque,
                     mass: &mass,
                     radius: &radius,
                     dt,
-                },
-            );
-            for k in 0..count {
-                let inertia = rolling::sphere_inertia(mass[k], radius[k]);
-                let expected = omega[k] + 0.5 * dt / inertia * torque[k];
-                assert_eq!(w[k], expected, "{}: ω of {k}", set.name());
+                };
+                dispatch_folded(set, kick, folded);
+                for k in 0..count {
+                    let factor = 0.5 * dt / rolling::sphere_inertia(mass[k], radius[k]);
+                    let closed = if folded {
+                        omega[k] + factor * torque[k]
+                    } else {
+                        omega[k]
+                    };
+                    let expected = closed + factor * torque[k];
+                    assert_eq!(w[k], expected, "{}: ω of {k}, folded {folded}", set.name());
+                }
             }
 
             // A NaN in the last component of the last particle clears `finite`.
