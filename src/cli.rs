@@ -413,10 +413,10 @@ fn run_loop(
     while sim.step < steps {
         // Up to the next step with output due or a progress update: the steps between run in
         // one call (`Simulation::advance`), which stops early on a tripped guard or a ^C.
-        let next_bar = (sim.step / bar_stride + 1) * bar_stride;
-        let until = (sim.step + 1..next_bar.min(steps))
+        let next_bar = ((sim.step / bar_stride + 1) * bar_stride).min(steps);
+        let until = (sim.step + 1..next_bar)
             .find(|&step| writers.due(step, false))
-            .unwrap_or(next_bar.min(steps));
+            .unwrap_or(next_bar);
         sim.advance(until - sim.step, || !interrupted.load(Ordering::Relaxed));
         let stop = interrupted.load(Ordering::Relaxed);
         if let Err(message) = check_and_write(sim, writers, stop || sim.step == steps) {

@@ -148,15 +148,11 @@ pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64)
         .chunks_mut(CHUNK)
         .zip(optional_items(omega).zip(optional_items(torque)))
         .collect();
-    let lowest = |a: Option<usize>, b: Option<usize>| match (a, b) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
-    };
     each_chunk(
         chunks,
         parallel,
         None,
-        lowest,
+        lowest_particle,
         |first, (velocity, angular)| {
             let mut finite = true;
             let set = InstructionSet::detect();
@@ -183,13 +179,7 @@ pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64)
                     },
                 );
             }
-            // Searched only in the rare chunk that has one.
-            (!finite).then(|| {
-                range
-                    .clone()
-                    .find(|&k| !force[k].is_finite())
-                    .expect("a chunk with a non-finite force")
-            })
+            first_non_finite_in(first, &force[range], finite)
         },
     )
 }
@@ -287,15 +277,11 @@ impl KickDrift<'_> {
 #[must_use]
 pub fn first_non_finite_force(force: &[DVec3]) -> Option<usize> {
     let chunks: Vec<&[DVec3]> = force.chunks(CHUNK).collect();
-    let lowest = |a: Option<usize>, b: Option<usize>| match (a, b) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
-    };
     each_chunk(
         chunks,
         crate::worth_parallel(force.len()),
         None,
-        lowest,
+        lowest_particle,
         |first, chunk| {
             let mut finite = true;
             dispatch(
@@ -305,15 +291,31 @@ pub fn first_non_finite_force(force: &[DVec3]) -> Option<usize> {
                     finite: &mut finite,
                 },
             );
-            (!finite).then(|| {
-                first
-                    + chunk
-                        .iter()
-                        .position(|f| !f.is_finite())
-                        .expect("a chunk with a non-finite force")
-            })
+            first_non_finite_in(first, chunk, finite)
         },
     )
+}
+
+/// The lower of two particles, either of which may be absent: how the chunks' findings of a
+/// non-finite force merge.
+fn lowest_particle(a: Option<usize>, b: Option<usize>) -> Option<usize> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// The first particle of the chunk `force` (whose first particle is `first`) with a non-finite
+/// force, unless the kernel found the chunk `finite`: searched only in the rare chunk that has
+/// one.
+fn first_non_finite_in(first: usize, force: &[DVec3], finite: bool) -> Option<usize> {
+    (!finite).then(|| {
+        first
+            + force
+                .iter()
+                .position(|f| !f.is_finite())
+                .expect("a chunk with a non-finite force")
+    })
 }
 
 /// Whether every component of `force` is finite, into `finite`.

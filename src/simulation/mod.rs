@@ -742,7 +742,7 @@ impl Simulation {
         let mut opening = integrate::Opening::AfterStep;
         for done in 1..=count {
             self.open_step(opening);
-            self.close_forces();
+            self.forces_and_temperatures();
             // Found anew at every step, by its closing kick or by the test below.
             self.non_finite_force = None;
             self.step += 1;
@@ -757,7 +757,7 @@ impl Simulation {
             }
             opening = integrate::Opening::AfterClosingKick;
         }
-        0
+        0 // count was 0: every other call returns from the loop
     }
 
     /// Steps 1-3 (see the module documentation): the half kick and the drift (after the last
@@ -783,7 +783,7 @@ impl Simulation {
     }
 
     /// Steps 4-6: the forces and the temperatures.
-    fn close_forces(&mut self) {
+    fn forces_and_temperatures(&mut self) {
         // The opening pass left the forces at the weights and the torques and heat sums at zero
         // (a rebuild permutes and drops particles with their forces).
         let summary = self.compute_forces(Evaluation::Step);
