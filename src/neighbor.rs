@@ -721,6 +721,16 @@ impl NeighborList {
         self.offsets[k] as usize..self.offsets[k + 1] as usize
     }
 
+    /// Whether owner `k` had a partner across a periodic face at the build. If not, the plain
+    /// difference of the stored positions is the minimum image of each of its touching pairs
+    /// until the next build, and its pairs apart are apart under either
+    /// ([`Window::needs_minimum_image`], whose rule this is).
+    #[must_use]
+    #[inline]
+    pub fn needs_minimum_image(&self, k: usize) -> bool {
+        self.crossing[k]
+    }
+
     /// Every pair as `(slot, owner, partner)`, in slot order.
     pub fn pairs(&self) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
         self.pairs_of(0..self.offsets.len().saturating_sub(1))

@@ -368,17 +368,21 @@ impl Simulation {
     }
 
     /// The touching pairs of the owners `owners`, as [`Simulation::touching_pairs`] gives them.
+    /// The minimum image is taken only for the owners that need it, as in the pair pass
+    /// ([`NeighborList::needs_minimum_image`]): the touching pairs' separations are the same
+    /// bit for bit. (The diagnostics walk the candidates by the same rule in plain loops,
+    /// `Simulation::contacts_of_chunk`.)
     fn touching_pairs_of(
         &self,
         owners: Range<usize>,
     ) -> impl Iterator<Item = (usize, usize, usize, glam::DVec3, f64)> + '_ {
         let periodic = self.model.periodic.as_ref();
-        self.neighbors
-            .pairs_of(owners)
-            .filter_map(move |(p, a, b)| {
-                let (normal, overlap) = forces::pair_geometry(periodic, &self.particles, a, b);
-                (overlap > 0.0).then_some((p, a, b, normal, overlap))
-            })
+        let list = &self.neighbors;
+        list.pairs_of(owners).filter_map(move |(p, a, b)| {
+            let image = periodic.filter(|_| list.needs_minimum_image(a));
+            let (normal, overlap) = forces::touching_pair_geometry(image, &self.particles, a, b)?;
+            Some((p, a, b, normal, overlap))
+        })
     }
 
     /// Bonded pairs as (index a, index b, overlap \[m\], normal force \[N\], positive when
@@ -750,7 +754,7 @@ impl Simulation {
             let time = self.step as f64 * dt; // no accumulated round-off over millions of steps
             self.time = time;
             let last = done == count || self.guard_trip().is_some() || !keep_going();
-            if last || integrate::first_non_finite_force(&self.particles.force).is_some() {
+            if last || integrate::first_non_finite_vector(&self.particles.force).is_some() {
                 self.non_finite_force =
                     integrate::kick(&mut self.particles, self.rotation.as_mut(), dt);
                 return done;

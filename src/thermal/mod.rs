@@ -511,10 +511,12 @@ pub fn update_conductances(
 ) {
     conductance.clear();
     conductance.extend(list.pairs().map(|(_, a, b)| {
-        let (_, overlap) = crate::forces::pair_geometry(periodic, particles, a, b);
-        if overlap <= 0.0 {
+        // The minimum image only where the owner needs it, as in the pair pass.
+        let image = periodic.filter(|_| list.needs_minimum_image(a));
+        let Some((_, overlap)) = crate::forces::touching_pair_geometry(image, particles, a, b)
+        else {
             return 0.0;
-        }
+        };
         let radii = [particles.radius[a], particles.radius[b]];
         let effective_radius = crate::contact::hertz::effective_radius(radii[0], radii[1]);
         let materials = [particles.material[a], particles.material[b]];
