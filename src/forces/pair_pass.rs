@@ -387,6 +387,8 @@ impl<'r, 's> Batch<'r, 's> {
         if self.filled > 0 {
             lanes::run::<BONDS, FRICTION>(set, model, self.interval, &mut self.lanes);
         }
+        // Every filled lane is a touching pair, met once.
+        summary.pair_contacts += self.filled;
         let states = targets.states.as_ref().filter(|_| BONDS);
         let histories = targets.tangential.as_ref().filter(|_| FRICTION);
         let torque = targets.torque.as_ref().filter(|_| FRICTION);
@@ -420,7 +422,6 @@ impl<'r, 's> Batch<'r, 's> {
                     lane += 1;
                     let (a, b) = reads.pair(owner, partner);
                     summary.observe_overlap(out.overlap_ratio, if r_a <= r_b { a } else { b });
-                    summary.pair_contacts += 1;
                     if let Some(states) = states {
                         if out.state != state_before {
                             states.write(slot, out.state);
@@ -655,7 +656,12 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         let (a, b) = reads.pair(owner, partner);
         let (r_a, r_b) = (reads.radius[a], reads.radius[b]);
         let reach = r_a + r_b;
-        if separation.length_squared() >= reach * reach {
+        // Without bond states the sifts keep only the touching pairs, by this very test (the
+        // same operations on the same values): it is tested again only where a bonded pair
+        // apart may have been kept.
+        let apart = separation.length_squared() >= reach * reach;
+        debug_assert!(BONDS || !apart, "a pair apart kept without bond states");
+        if BONDS && apart {
             // Apart: no square root, no division, and the slot's state cleared.
             if let Some(states) = states {
                 if states.read(p) != BondState::Unbonded {
