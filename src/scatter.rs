@@ -332,7 +332,7 @@ impl<'a> SlabVisit<'a> {
     pub fn near_pairs(
         &self,
         range: Range<usize>,
-    ) -> impl ExactSizeIterator<Item = NearTokens<'a>> + '_ {
+    ) -> impl ExactSizeIterator<Item = NearTokens<'a>> + Clone + '_ {
         let NearVisit::Read(list) = &self.near else {
             panic!("this visit reads no near list")
         };

@@ -504,11 +504,20 @@ impl ForceSummary {
     /// Takes in one contact's overlap ratio, seen at particle `k`.
     #[inline]
     fn observe_overlap(&mut self, ratio: f64, k: usize) {
-        if ratio > self.max_overlap_ratio
-            || (ratio == self.max_overlap_ratio && k < self.max_overlap_particle)
-        {
-            self.max_overlap_ratio = ratio;
-            self.max_overlap_particle = k;
+        self.observe_overlap_at(ratio, || k);
+    }
+
+    /// As [`Self::observe_overlap`], with the particle found by `particle()` only for a ratio
+    /// that reaches the largest so far: most contacts' do not, and finding the particle (the
+    /// smaller of two) costs two loads and a compare per contact of the pair pass.
+    #[inline(always)]
+    fn observe_overlap_at(&mut self, ratio: f64, particle: impl FnOnce() -> usize) {
+        if ratio >= self.max_overlap_ratio {
+            let k = particle();
+            if ratio > self.max_overlap_ratio || k < self.max_overlap_particle {
+                self.max_overlap_ratio = ratio;
+                self.max_overlap_particle = k;
+            }
         }
     }
 

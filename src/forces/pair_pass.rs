@@ -222,16 +222,21 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
     model: &Model,
     particles: &Particles,
     targets: &OpenTargets<'_, 's>,
-    entries: impl ExactSizeIterator<Item = NearTokens<'s>>,
+    entries: impl ExactSizeIterator<Item = NearTokens<'s>> + Clone,
     batch: &mut Batch<'_, 's>,
 ) {
     // Known at compile time to be `None` where the instantiation leaves the physics out.
     let states = targets.states.as_ref().filter(|_| BONDS);
     let mut count = batch.kept_count;
     let room = count + entries.len();
-    if batch.kept.len() < room {
-        batch.kept.resize(room, None);
-    }
+    make_room(&mut batch.kept, room, || {
+        entries.clone().next().map(|entry| KeptSlot {
+            owner: entry.owner,
+            partner: entry.partner,
+            slot: entry.slot,
+            separation: DVec3::ZERO,
+        })
+    });
     let reads = ParticleReads::of(particles);
     for NearTokens {
         owner,
@@ -298,8 +303,8 @@ struct Batch<'r, 's> {
     events: Vec<Event<'s>>,
     owner: Option<OwnerSums<'s>>,
     /// The slots that need work, of the owners sifted since the last [`handle_kept`], in order:
-    /// the first `kept_count` entries (those beyond are the sift's scratch).
-    kept: Vec<Option<KeptSlot<'s>>>,
+    /// the first `kept_count` entries (those beyond are the sift's scratch, [`make_room`]).
+    kept: Vec<KeptSlot<'s>>,
     kept_count: usize,
 }
 
@@ -326,7 +331,7 @@ const KEPT_PER_ROUND: usize = 64;
 #[derive(Default)]
 struct BatchBuffers {
     events: Vec<Event<'static>>,
-    kept: Vec<Option<KeptSlot<'static>>>,
+    kept: Vec<KeptSlot<'static>>,
 }
 
 thread_local! {
@@ -421,7 +426,8 @@ impl<'r, 's> Batch<'r, 's> {
                     let state_before = self.lanes.state_before(lane);
                     lane += 1;
                     let (a, b) = reads.pair(owner, partner);
-                    summary.observe_overlap(out.overlap_ratio, if r_a <= r_b { a } else { b });
+                    summary
+                        .observe_overlap_at(out.overlap_ratio, || if r_a <= r_b { a } else { b });
                     if let Some(states) = states {
                         if out.state != state_before {
                             states.write(slot, out.state);
@@ -539,9 +545,17 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
     let (x_a, r_a) = (particles.position[a], particles.radius[a]);
     let kept = batch.kept_count;
     let room = kept + window.slot_count();
-    if batch.kept.len() < room {
-        batch.kept.resize(room, None);
-    }
+    make_room(&mut batch.kept, room, || {
+        (window.slot_count() > 0).then(|| {
+            let (slot, partner) = window.nth_pair(0);
+            KeptSlot {
+                owner,
+                partner,
+                slot,
+                separation: DVec3::ZERO,
+            }
+        })
+    });
     // One loop per image rule, so that the rule is not tested per slot.
     let slots = SiftedWindow {
         window,
@@ -577,7 +591,7 @@ impl<'s> SiftedWindow<'_, 's, '_> {
     fn sift(
         &self,
         particles: &Particles,
-        kept: &mut [Option<KeptSlot<'s>>],
+        kept: &mut [KeptSlot<'s>],
         mut count: usize,
         image: impl Fn(DVec3) -> DVec3,
     ) -> usize {
@@ -604,6 +618,23 @@ impl<'s> SiftedWindow<'_, 's, '_> {
     }
 }
 
+/// Grows the kept slots to `room` entries if they are fewer, the new ones copies of `sample()`
+/// (a slot of the visit, `None` only if the sift has nothing to write): the entries past the
+/// kept ones are the sift's scratch, each written before it is read. (Held as `Option`s, with
+/// `None` to grow by, the slots took a tag's store per candidate and a test per kept slot.)
+#[inline(always)]
+fn make_room<'s>(
+    kept: &mut Vec<KeptSlot<'s>>,
+    room: usize,
+    sample: impl FnOnce() -> Option<KeptSlot<'s>>,
+) {
+    if kept.len() < room {
+        if let Some(sample) = sample() {
+            kept.resize(room, sample);
+        }
+    }
+}
+
 /// The rule of both sifts ([`sift`], [`sift_near`]): writes `slot` to `kept[count]` and returns
 /// the end of the kept slots, advanced past it if the pair touches or its slot holds a bond state
 /// (which must be cleared when it comes apart). Without a branch: whether a candidate touches is
@@ -611,14 +642,14 @@ impl<'s> SiftedWindow<'_, 's, '_> {
 /// came apart are the ones the pass does not meet, [`OpenHistories`].)
 #[inline(always)]
 fn keep<'s>(
-    kept: &mut [Option<KeptSlot<'s>>],
+    kept: &mut [KeptSlot<'s>],
     count: usize,
     slot: KeptSlot<'s>,
     touching: bool,
     states: Option<&Opened<'_, 's, BondState, PerSlot>>,
 ) -> usize {
     let bonded = states.is_some_and(|states| states.read(slot.slot) != BondState::Unbonded);
-    kept[count] = Some(slot);
+    kept[count] = slot;
     count + usize::from(touching | bonded)
 }
 
@@ -652,7 +683,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             partner,
             slot: p,
             separation,
-        } = batch.kept[k].expect("the sift writes every entry it keeps");
+        } = batch.kept[k];
         let (a, b) = reads.pair(owner, partner);
         let (r_a, r_b) = (reads.radius[a], reads.radius[b]);
         let reach = r_a + r_b;
