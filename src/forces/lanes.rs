@@ -226,42 +226,102 @@ impl ContactLanes {
 
     /// Puts `input` into lane `i`; what the combination leaves out is not stored, nor are the
     /// material parameters where every lane holds the same (`input` must then carry those).
+    /// The pair pass stores the parts one by one as it has them ([`Self::set_pair`],
+    /// [`Self::set_pair_material`], [`Self::set_bond`], [`Self::set_spin`]).
     #[inline(always)]
     pub(super) fn set<const BONDS: bool, const FRICTION: bool>(
         &mut self,
         i: usize,
         input: &ContactInput,
     ) {
-        self.separation.set(i, input.separation);
-        for end in 0..2 {
-            self.radius[end][i] = input.radius[end];
-            self.mass[end][i] = input.mass[end];
-            self.velocity[end].set(i, input.velocity[end]);
-        }
+        self.set_pair(
+            i,
+            input.separation,
+            input.radius,
+            input.mass,
+            input.velocity,
+        );
         if !self.uniform_material {
-            self.effective_modulus[i] = input.effective_modulus;
-            self.damping_ratio[i] = input.damping_ratio;
-            if BONDS {
-                self.materials[0][i] = input.materials[0];
-                self.materials[1][i] = input.materials[1];
-            }
-            if FRICTION {
-                self.shear_modulus[i] = input.friction.effective_shear_modulus;
-                self.sliding[i] = input.friction.sliding;
-                self.rolling[i] = input.friction.rolling;
-            }
+            self.set_pair_material::<BONDS, FRICTION>(
+                i,
+                &PairMaterial {
+                    materials: input.materials,
+                    effective_modulus: input.effective_modulus,
+                    damping_ratio: input.damping_ratio,
+                    friction: input.friction,
+                },
+            );
         }
         if BONDS {
-            self.state[i] = input.state;
-            self.criterion[i] = input.criterion;
+            self.set_bond(i, input.state, input.criterion);
         }
         if FRICTION {
-            for end in 0..2 {
-                self.angular_velocity[end].set(i, input.angular_velocity[end]);
-            }
-            self.held_history.set(i, input.held.history);
-            self.held_energy[i] = input.held.spring_energy;
+            self.set_spin(i, input.angular_velocity, input.held);
         }
+    }
+
+    /// Puts a pair's geometry and motion into lane `i`: `x_b − x_a` \[m\], the radii \[m\],
+    /// masses \[kg\] and velocities \[m/s\] of a and b. Stored as soon as the pass has them,
+    /// so that they are not held in registers (or spilled) across the spring's look-up.
+    #[inline(always)]
+    pub(super) fn set_pair(
+        &mut self,
+        i: usize,
+        separation: DVec3,
+        radius: [f64; 2],
+        mass: [f64; 2],
+        velocity: [DVec3; 2],
+    ) {
+        self.separation.set(i, separation);
+        for end in 0..2 {
+            self.radius[end][i] = radius[end];
+            self.mass[end][i] = mass[end];
+            self.velocity[end].set(i, velocity[end]);
+        }
+    }
+
+    /// Puts a material pair's parameters into lane `i` (not needed where every lane holds the
+    /// same, [`Self::uniform_material`]); what the combination leaves out is not stored.
+    #[inline(always)]
+    pub(super) fn set_pair_material<const BONDS: bool, const FRICTION: bool>(
+        &mut self,
+        i: usize,
+        material: &PairMaterial,
+    ) {
+        self.effective_modulus[i] = material.effective_modulus;
+        self.damping_ratio[i] = material.damping_ratio;
+        if BONDS {
+            self.materials[0][i] = material.materials[0];
+            self.materials[1][i] = material.materials[1];
+        }
+        if FRICTION {
+            self.shear_modulus[i] = material.friction.effective_shear_modulus;
+            self.sliding[i] = material.friction.sliding;
+            self.rolling[i] = material.friction.rolling;
+        }
+    }
+
+    /// Puts lane `i`'s bond state before the step and whether the bond criterion holds (M.12).
+    #[inline(always)]
+    pub(super) fn set_bond(&mut self, i: usize, state: BondState, criterion: bool) {
+        self.state[i] = state;
+        self.criterion[i] = criterion;
+    }
+
+    /// Puts lane `i`'s angular velocities \[rad/s\] of a and b and the spring the last pass
+    /// left.
+    #[inline(always)]
+    pub(super) fn set_spin(
+        &mut self,
+        i: usize,
+        angular_velocity: [DVec3; 2],
+        held: TangentialSpring,
+    ) {
+        for (lane, &omega) in self.angular_velocity.iter_mut().zip(&angular_velocity) {
+            lane.set(i, omega);
+        }
+        self.held_history.set(i, held.history);
+        self.held_energy[i] = held.spring_energy;
     }
 
     /// Whether a lane is bonded or its bond criterion holds: only then can the bond law change

@@ -11,7 +11,7 @@
 
 use glam::DVec3;
 
-use super::lanes::{self, ContactInput, ContactLanes, LANES, PairMaterial};
+use super::lanes::{self, ContactLanes, LANES, PairMaterial};
 use super::{ForceSummary, pair_separation};
 use crate::contact::BondState;
 use crate::contact::tangential::TangentialSpring;
@@ -707,34 +707,41 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                 .is_none_or(|p| p.minimum_image(separation) == separation),
             "a touching pair of owner {a} across a periodic face, which the list did not flag"
         );
-        // Loop-invariant with one material: then no material is loaded.
-        let material = uniform
-            .unwrap_or_else(|| PairMaterial::of(model, reads.material[a], reads.material[b]));
-        let melted = melted.map_or((false, false), |melted| (melted[a], melted[b]));
-        let (angular_velocity, held) = match (histories, omega) {
-            (Some(histories), Some(omega)) => {
-                let held = histories.read(own_slab, p, |slot, spring| {
-                    batch.release(slot, spring);
-                });
-                ([omega[a], omega[b]], held)
-            }
-            _ => ([DVec3::ZERO; 2], TangentialSpring::default()),
-        };
-        let input = ContactInput {
+        // The lane's parts are stored as they come, so that few values stay live across the
+        // spring's look-up (built whole, the input was held in registers and on the stack).
+        let lane = batch.filled;
+        batch.lanes.set_pair(
+            lane,
             separation,
-            radius: [r_a, r_b],
-            mass: [reads.mass[a], reads.mass[b]],
-            velocity: [reads.velocity[a], reads.velocity[b]],
-            effective_modulus: material.effective_modulus,
-            damping_ratio: material.damping_ratio,
-            materials: material.materials,
-            state: states.map_or(BondState::Unbonded, |states| states.read(p)),
-            criterion: model.bond_criterion.holds(melted.0, melted.1),
-            angular_velocity,
-            friction: material.friction,
-            held,
-        };
-        batch.lanes.set::<BONDS, FRICTION>(batch.filled, &input);
+            [r_a, r_b],
+            [reads.mass[a], reads.mass[b]],
+            [reads.velocity[a], reads.velocity[b]],
+        );
+        // With one material the lanes hold its parameters already: then none is loaded.
+        if uniform.is_none() {
+            let material = PairMaterial::of(model, reads.material[a], reads.material[b]);
+            batch
+                .lanes
+                .set_pair_material::<BONDS, FRICTION>(lane, &material);
+        }
+        if BONDS {
+            let state = states.map_or(BondState::Unbonded, |states| states.read(p));
+            let melted = melted.map_or((false, false), |melted| (melted[a], melted[b]));
+            let criterion = model.bond_criterion.holds(melted.0, melted.1);
+            batch.lanes.set_bond(lane, state, criterion);
+        }
+        if FRICTION {
+            let (angular_velocity, held) = match (histories, omega) {
+                (Some(histories), Some(omega)) => {
+                    let held = histories.read(own_slab, p, |slot, spring| {
+                        batch.release(slot, spring);
+                    });
+                    ([omega[a], omega[b]], held)
+                }
+                _ => ([DVec3::ZERO; 2], TangentialSpring::default()),
+            };
+            batch.lanes.set_spin(lane, angular_velocity, held);
+        }
         batch.filled += 1;
         batch.events.push(Event::Contact {
             owner,
