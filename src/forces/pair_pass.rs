@@ -421,6 +421,10 @@ impl<'r, 's> Batch<'r, 's> {
                     partner,
                     slot,
                 } => {
+                    // The last owner's sums are written first, so that none of this contact's
+                    // outputs is held (in registers, or spilled) across their writes: two
+                    // owners in three change at a contact on a packed bed.
+                    self.begin_owner(owner, targets);
                     let out = self.lanes.output(lane);
                     let [r_a, r_b] = self.lanes.radii(lane);
                     let state_before = self.lanes.state_before(lane);
@@ -433,7 +437,7 @@ impl<'r, 's> Batch<'r, 's> {
                             states.write(slot, out.state);
                         }
                     }
-                    let sums = self.begin_owner(owner, targets);
+                    let sums = self.owner.as_mut().expect("begun above");
                     if let Some(histories) = histories {
                         histories.write(own_slab, slot, out.spring);
                         sums.torque += out.torque_on_a;
