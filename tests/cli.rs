@@ -73,6 +73,27 @@ fn an_existing_output_is_never_overwritten_silently() {
     );
 }
 
+/// A run refused because its CSV exists makes no other file: the HDF5 file and its XDMF
+/// companion are not created (they were, empty, before the CSV's name was checked first).
+#[test]
+fn a_run_refused_for_its_csv_leaves_no_new_hdf5_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("laser_track.csv");
+    std::fs::write(&csv, "precious results\n").unwrap();
+    let stderr = am_sim_failing(dir.path(), &[&scene("laser_track.toml")]);
+    assert!(
+        stderr.contains("laser_track.csv already exists"),
+        "{stderr}"
+    );
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["laser_track.csv"]);
+    assert_eq!(std::fs::read_to_string(&csv).unwrap(), "precious results\n");
+}
+
 #[test]
 fn check_prints_the_derived_bond_quantities_and_runs_nothing() {
     let dir = tempfile::tempdir().unwrap();

@@ -222,6 +222,13 @@ impl Writers {
     ) -> Result<Self, OutputError> {
         let settings = &sim.model.output;
         let layout = SeriesLayout::of(sim);
+        // Both names are checked before either file is made: a run refused for its CSV leaves
+        // no new HDF5 file behind.
+        if !overwrite && restart_from.is_none() {
+            if let Some(path) = settings.series_csv.as_ref().filter(|p| p.exists()) {
+                return Err(OutputError::Exists(path.clone()));
+            }
+        }
         // The HDF5 file first: if it cannot be opened, the CSV has not been touched.
         #[cfg(feature = "hdf5")]
         let hdf5 = match (restart_from, &settings.file) {
