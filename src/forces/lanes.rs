@@ -190,38 +190,18 @@ impl ContactLanes {
         if model.materials.len() == 1 {
             let material = PairMaterial::of(model, 0, 0);
             for i in 0..LANES {
-                lanes.set_material(i, &material);
+                lanes.set_pair_material::<true, true>(i, &material);
             }
             lanes.uniform_material = true;
         }
         lanes
     }
 
-    /// The parameters every lane holds, if the model has one material.
+    /// Whether every lane holds the parameters of the model's one material
+    /// ([`Self::for_model`]): then no contact needs its own ([`Self::set_pair_material`]).
     #[inline(always)]
-    pub(super) fn uniform_material(&self) -> Option<PairMaterial> {
-        self.uniform_material.then(|| PairMaterial {
-            materials: [self.materials[0][0], self.materials[1][0]],
-            effective_modulus: self.effective_modulus[0],
-            damping_ratio: self.damping_ratio[0],
-            friction: FrictionParams {
-                effective_shear_modulus: self.shear_modulus[0],
-                sliding: self.sliding[0],
-                rolling: self.rolling[0],
-            },
-        })
-    }
-
-    /// Puts a material pair's parameters into lane `i`.
-    #[inline(always)]
-    fn set_material(&mut self, i: usize, material: &PairMaterial) {
-        self.effective_modulus[i] = material.effective_modulus;
-        self.damping_ratio[i] = material.damping_ratio;
-        self.materials[0][i] = material.materials[0];
-        self.materials[1][i] = material.materials[1];
-        self.shear_modulus[i] = material.friction.effective_shear_modulus;
-        self.sliding[i] = material.friction.sliding;
-        self.rolling[i] = material.friction.rolling;
+    pub(super) fn uniform_material(&self) -> bool {
+        self.uniform_material
     }
 
     /// Puts `input` into lane `i`; what the combination leaves out is not stored, nor are the
@@ -867,7 +847,7 @@ pub(in crate::forces) mod tests {
             (0.5, 0.1)
         );
         let mut uniform = ContactLanes::for_model(&model);
-        assert!(uniform.uniform_material().is_some());
+        assert!(uniform.uniform_material());
         let mut per_contact = ContactLanes::default();
         for (i, mut input) in inputs(LANES).into_iter().enumerate() {
             input.effective_modulus = material.effective_modulus;
@@ -893,7 +873,7 @@ pub(in crate::forces) mod tests {
         );
         let model = Model::build(&Scene::from_toml(&two).expect("the test's scene")).0;
         assert_eq!(model.materials.len(), 2);
-        assert!(ContactLanes::for_model(&model).uniform_material().is_none());
+        assert!(!ContactLanes::for_model(&model).uniform_material());
     }
 
     /// Every build of the kernel gives bitwise what the laws give one contact at a time.

@@ -722,7 +722,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             [reads.velocity[a], reads.velocity[b]],
         );
         // With one material the lanes hold its parameters already: then none is loaded.
-        if uniform.is_none() {
+        if !uniform {
             let material = PairMaterial::of(model, reads.material[a], reads.material[b]);
             batch
                 .lanes
