@@ -369,11 +369,11 @@ impl Simulation {
     fn deepest_contact_of(&self, k: usize) -> Vec<u64> {
         let p = &self.particles;
         let mut deepest = (f64::NEG_INFINITY, None);
-        for (_, a, b, _, overlap) in self.touching_pairs() {
+        self.for_each_touching_pair(|_, a, b, _, overlap| {
             if (a == k || b == k) && overlap > deepest.0 {
                 deepest = (overlap, Some(p.id[a + b - k]));
             }
-        }
+        });
         for w in 0..self.model.walls.len() {
             let overlap = forces::wall_overlap(&self.model, p, k, w);
             if overlap > deepest.0 {
@@ -489,36 +489,19 @@ impl Simulation {
     fn contacts_of_chunk(&self, first: usize, mut visit: impl FnMut(Contact<'_>)) {
         let p = &self.particles;
         let chunk = first..(first + PARTICLES_PER_ITEM).min(p.len());
-        // The touching pairs of `Simulation::touching_pairs_of`, in its order, by plain loops:
-        // this walk of every candidate at each output took nearly as many instructions as two
-        // steps on the 19.2k LIGGGHTS bed when written with that iterator.
-        let (list, periodic) = (&self.neighbors, self.model.periodic.as_ref());
-        let (position, radius) = (&p.position[..p.len()], &p.radius[..p.len()]);
-        let partners = list.partners();
-        for a in chunk.clone() {
-            let image = periodic.filter(|_| list.needs_minimum_image(a));
-            let (x_a, r_a) = (position[a], radius[a]);
-            for slot in list.slots(a) {
-                let b = partners[slot] as usize;
-                let separation = position[b] - x_a;
-                let separation = image.map_or(separation, |p| p.minimum_image(separation));
-                let Some((_, overlap)) = forces::touching_geometry(separation, r_a + radius[b])
-                else {
-                    continue;
-                };
-                visit(Contact {
-                    first: a,
-                    second: Some(b),
-                    wall: None,
-                    overlap,
-                    smaller_radius: p.radius[a].min(p.radius[b]),
-                    effective_radius: hertz::effective_radius(p.radius[a], p.radius[b]),
-                    effective_mass: hertz::effective_mass(p.mass[a], p.mass[b]),
-                    params: self.model.pair_params(p.material[a], p.material[b]),
-                    bonded: self.slot_bond_state(slot) == BondState::Bonded,
-                });
-            }
-        }
+        self.for_each_touching_pair_of(chunk.clone(), |slot, a, b, _, overlap| {
+            visit(Contact {
+                first: a,
+                second: Some(b),
+                wall: None,
+                overlap,
+                smaller_radius: p.radius[a].min(p.radius[b]),
+                effective_radius: hertz::effective_radius(p.radius[a], p.radius[b]),
+                effective_mass: hertz::effective_mass(p.mass[a], p.mass[b]),
+                params: self.model.pair_params(p.material[a], p.material[b]),
+                bonded: self.slot_bond_state(slot) == BondState::Bonded,
+            });
+        });
         for k in chunk {
             for w in 0..self.model.walls.len() {
                 let overlap = forces::wall_overlap(&self.model, p, k, w);
