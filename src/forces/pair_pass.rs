@@ -11,8 +11,8 @@
 
 use glam::DVec3;
 
+use super::ForceSummary;
 use super::lanes::{self, ContactLanes, LANES, PairMaterial};
-use super::{ForceSummary, pair_separation};
 use crate::contact::BondState;
 use crate::contact::tangential::TangentialSpring;
 use crate::model::Model;
@@ -20,7 +20,7 @@ use crate::neighbor::{NearPairs, NeighborList};
 use crate::pair_history::{HistoryTargets, OpenHistories};
 use crate::particles::Particles;
 use crate::scatter::{
-    Member, NearTokens, Opened, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
+    Member, NearTokens, Opened, OpenedReads, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
 };
 use crate::simd::InstructionSet;
 use crate::thermal::{self, HeatSums, ThermalModel};
@@ -72,8 +72,8 @@ impl PairTargets<'_> {
                 .map(|h| h.open(visit)),
             heat: self.heat.as_ref().filter(|_| HEAT).map(|h| OpenHeat {
                 model: h.model,
-                melted: h.melted,
-                temperature: h.temperature,
+                melted: OpenedReads::open(h.melted, visit),
+                temperature: OpenedReads::open(h.temperature, visit),
                 sums: h.sums.open(visit),
             }),
         }
@@ -94,8 +94,8 @@ struct OpenTargets<'t, 'v> {
 /// [`HeatTargets`] opened for one slab visit.
 struct OpenHeat<'t, 'v> {
     model: &'t ThermalModel,
-    melted: &'t [bool],
-    temperature: &'t [f64],
+    melted: OpenedReads<'t, 'v, bool>,
+    temperature: OpenedReads<'t, 'v, f64>,
     sums: Opened<'t, 'v, HeatSums, PerParticle>,
 }
 
@@ -123,15 +123,14 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         ForceSummary::default(),
         |summary, slab| {
             let targets = &targets.open::<BONDS, FRICTION, HEAT>(slab);
+            let reads = ParticleReads::open(particles, omega.filter(|_| FRICTION), slab);
             let mut batch = Batch::new(model, interval, slab);
             if slab.records_near() {
                 for window in slab.windows() {
-                    sift::<BONDS, FRICTION>(
-                        model, particles, targets, &window, near_skin, &mut batch,
-                    );
+                    sift::<BONDS, FRICTION>(model, reads, targets, &window, near_skin, &mut batch);
                     if batch.kept_count >= KEPT_PER_ROUND {
                         handle_kept::<BONDS, FRICTION, HEAT>(
-                            model, particles, omega, targets, &mut batch, set, summary,
+                            model, reads, targets, &mut batch, set, summary,
                         );
                     }
                 }
@@ -139,22 +138,20 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                 let count = slab.near_count();
                 for start in (0..count).step_by(NEAR_PER_ROUND) {
                     let entries = slab.near_pairs(start..(start + NEAR_PER_ROUND).min(count));
-                    sift_near::<BONDS, FRICTION>(model, particles, targets, entries, &mut batch);
+                    sift_near::<BONDS, FRICTION>(model, reads, targets, entries, &mut batch);
                     handle_kept::<BONDS, FRICTION, HEAT>(
-                        model, particles, omega, targets, &mut batch, set, summary,
+                        model, reads, targets, &mut batch, set, summary,
                     );
                 }
             }
-            handle_kept::<BONDS, FRICTION, HEAT>(
-                model, particles, omega, targets, &mut batch, set, summary,
-            );
+            handle_kept::<BONDS, FRICTION, HEAT>(model, reads, targets, &mut batch, set, summary);
             // The springs the visit did not meet belong to pairs that came apart.
             if let Some(histories) = targets.tangential.as_ref().filter(|_| FRICTION) {
                 histories.release_unmet(slab.own_slab(), |slot, spring| {
                     batch.release(slot, spring);
                 });
             }
-            batch.flush::<BONDS, FRICTION, HEAT>(model, particles, targets, set, summary);
+            batch.flush::<BONDS, FRICTION, HEAT>(model, reads, targets, set, summary);
             batch.finish_owner(targets);
             batch.release_buffers();
         },
@@ -162,50 +159,34 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     )
 }
 
-/// The particle arrays the pair pass reads, each cut to the particle count. A pair's two indices
-/// checked once against that count ([`Self::pair`]) let the compiler drop the bounds checks of
-/// every array indexed by them (each array's length is then known to be the count): one compare
-/// per pair instead of one per load. In the near sift and the lanes' fill this made the 19.2k
-/// LIGGGHTS bed's step 3.9-4.6 % faster at 1 thread, 3.8-4.1 % at 2, 4.3-4.7 % with heat.
-struct ParticleReads<'p> {
-    count: usize,
-    position: &'p [DVec3],
-    radius: &'p [f64],
-    mass: &'p [f64],
-    velocity: &'p [DVec3],
-    material: &'p [u16],
+/// The particle arrays the pair pass reads, opened for one slab visit ([`OpenedReads`]): their
+/// lengths are checked once per visit, and a read with one of the visit's tokens takes no bounds
+/// check. (Cut to the particle count and indexed by a pair's two indices, checked once per pair,
+/// they took a compare and a branch per near-list entry and per contact in each of the sift, the
+/// fill and the write-back: about 13 instructions per particle-step on the 19.2k LIGGGHTS bed.)
+#[derive(Clone, Copy)]
+struct ParticleReads<'p, 'v> {
+    position: OpenedReads<'p, 'v, DVec3>,
+    radius: OpenedReads<'p, 'v, f64>,
+    mass: OpenedReads<'p, 'v, f64>,
+    velocity: OpenedReads<'p, 'v, DVec3>,
+    material: OpenedReads<'p, 'v, u16>,
+    /// With rotation: the angular velocities \[rad/s\].
+    angular_velocity: Option<OpenedReads<'p, 'v, DVec3>>,
 }
 
-impl<'p> ParticleReads<'p> {
-    /// The arrays of `particles`.
-    #[inline(always)]
-    fn of(particles: &'p Particles) -> Self {
-        let count = particles.len();
+impl<'p, 'v> ParticleReads<'p, 'v> {
+    /// The arrays of `particles` and the angular velocities `omega`, for the tokens of `visit`.
+    #[inline]
+    fn open(particles: &'p Particles, omega: Option<&'p [DVec3]>, visit: &SlabVisit<'v>) -> Self {
         Self {
-            count,
-            position: &particles.position[..count],
-            radius: &particles.radius[..count],
-            mass: &particles.mass[..count],
-            velocity: &particles.velocity[..count],
-            material: &particles.material[..count],
+            position: OpenedReads::open(&particles.position, visit),
+            radius: OpenedReads::open(&particles.radius, visit),
+            mass: OpenedReads::open(&particles.mass, visit),
+            velocity: OpenedReads::open(&particles.velocity, visit),
+            material: OpenedReads::open(&particles.material, visit),
+            angular_velocity: omega.map(|omega| OpenedReads::open(omega, visit)),
         }
-    }
-
-    /// Another per-particle array, cut to the particle count.
-    #[inline(always)]
-    fn cut<'a, T>(&self, values: &'a [T]) -> &'a [T] {
-        &values[..self.count]
-    }
-
-    /// The indices of `owner` and `partner`.
-    ///
-    /// # Panics
-    /// If either is not a particle (the neighbour list names only particles).
-    #[inline(always)]
-    fn pair(&self, owner: Member<'_>, partner: Member<'_>) -> (usize, usize) {
-        let (a, b) = (owner.index(), partner.index());
-        assert!(a.max(b) < self.count, "a pair beyond the particles");
-        (a, b)
     }
 }
 
@@ -220,7 +201,7 @@ const NEAR_PER_ROUND: usize = 256;
 #[inline(always)]
 fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
     model: &Model,
-    particles: &Particles,
+    reads: ParticleReads<'_, 's>,
     targets: &OpenTargets<'_, 's>,
     entries: impl ExactSizeIterator<Item = NearTokens<'s>> + Clone,
     batch: &mut Batch<'_, 's>,
@@ -237,7 +218,6 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
             separation: DVec3::ZERO,
         })
     });
-    let reads = ParticleReads::of(particles);
     for NearTokens {
         owner,
         slot,
@@ -245,10 +225,10 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
         minimum_image,
     } in entries
     {
-        let (a, b) = reads.pair(owner, partner);
         let periodic = model.periodic.as_ref().filter(|_| minimum_image);
-        let separation = pair_separation(periodic, reads.position, a, b);
-        let reach = reads.radius[a] + reads.radius[b];
+        let separation = reads.position.get(partner) - reads.position.get(owner);
+        let separation = periodic.map_or(separation, |p| p.minimum_image(separation));
+        let reach = reads.radius.get(owner) + reads.radius.get(partner);
         let touching = separation.length_squared() < reach * reach;
         let kept_slot = KeptSlot {
             owner,
@@ -384,7 +364,7 @@ impl<'r, 's> Batch<'r, 's> {
     fn flush<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         &mut self,
         model: &Model,
-        particles: &Particles,
+        reads: ParticleReads<'_, 's>,
         targets: &OpenTargets<'_, 's>,
         set: InstructionSet,
         summary: &mut ForceSummary,
@@ -398,13 +378,7 @@ impl<'r, 's> Batch<'r, 's> {
         let histories = targets.tangential.as_ref().filter(|_| FRICTION);
         let torque = targets.torque.as_ref().filter(|_| FRICTION);
         let own_slab = self.slab.own_slab();
-        let reads = ParticleReads::of(particles);
-        // With its temperatures cut to the particle count (one bounds check per pair).
-        let heat = targets
-            .heat
-            .as_ref()
-            .filter(|_| HEAT)
-            .map(|h| (h, reads.cut(h.temperature)));
+        let heat = targets.heat.as_ref().filter(|_| HEAT);
         let mut lane = 0;
         for k in 0..self.events.len() {
             match self.events[k] {
@@ -429,9 +403,9 @@ impl<'r, 's> Batch<'r, 's> {
                     let [r_a, r_b] = self.lanes.radii(lane);
                     let state_before = self.lanes.state_before(lane);
                     lane += 1;
-                    let (a, b) = reads.pair(owner, partner);
-                    summary
-                        .observe_overlap_at(out.overlap_ratio, || if r_a <= r_b { a } else { b });
+                    summary.observe_overlap_at(out.overlap_ratio, || {
+                        if r_a <= r_b { owner } else { partner }.index()
+                    });
                     if let Some(states) = states {
                         if out.state != state_before {
                             states.write(slot, out.state);
@@ -449,15 +423,16 @@ impl<'r, 's> Batch<'r, 's> {
                     sums.lost += 0.5 * out.lost;
                     targets.force.update(partner, |f| f - out.force_on_a);
                     targets.lost.update(partner, |l| l + 0.5 * out.lost);
-                    if let Some((h, temperature)) = heat {
+                    if let Some(h) = heat {
                         let conductance = thermal::pair_conductance(
                             h.model,
-                            [reads.material[a], reads.material[b]],
+                            [reads.material.get(owner), reads.material.get(partner)],
                             [r_a, r_b],
                             out.overlap,
                             out.effective_radius,
                         );
-                        let flow = conductance * (temperature[b] - temperature[a]);
+                        let flow =
+                            conductance * (h.temperature.get(partner) - h.temperature.get(owner));
                         sums.heat += flow;
                         sums.conductance += conductance;
                         h.sums.update(partner, |s| s.add(-flow, conductance));
@@ -535,7 +510,7 @@ impl<'r, 's> Batch<'r, 's> {
 #[inline(always)]
 fn sift<'s, const BONDS: bool, const FRICTION: bool>(
     model: &Model,
-    particles: &Particles,
+    reads: ParticleReads<'_, 's>,
     targets: &OpenTargets<'_, 's>,
     window: &Window<'s>,
     near_skin: f64,
@@ -544,9 +519,8 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
     // Known at compile time to be `None` where the instantiation leaves the physics out.
     let states = targets.states.as_ref().filter(|_| BONDS);
     let owner = window.owner();
-    let a = owner.index();
     let minimum_image = window.needs_minimum_image();
-    let (x_a, r_a) = (particles.position[a], particles.radius[a]);
+    let (x_a, r_a) = (reads.position.get(owner), reads.radius.get(owner));
     let kept = batch.kept_count;
     let room = kept + window.slot_count();
     make_room(&mut batch.kept, room, || {
@@ -570,10 +544,10 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
         near_skin,
     };
     batch.kept_count = match model.periodic.as_ref().filter(|_| minimum_image) {
-        Some(periodic) => slots.sift(particles, &mut batch.kept, kept, |separation| {
+        Some(periodic) => slots.sift(reads, &mut batch.kept, kept, |separation| {
             periodic.minimum_image(separation)
         }),
-        None => slots.sift(particles, &mut batch.kept, kept, |separation| separation),
+        None => slots.sift(reads, &mut batch.kept, kept, |separation| separation),
     };
 }
 
@@ -594,16 +568,15 @@ impl<'s> SiftedWindow<'_, 's, '_> {
     #[inline(always)]
     fn sift(
         &self,
-        particles: &Particles,
+        reads: ParticleReads<'_, 's>,
         kept: &mut [KeptSlot<'s>],
         mut count: usize,
         image: impl Fn(DVec3) -> DVec3,
     ) -> usize {
         let owner = self.window.owner();
         for (slot, partner) in self.window.pairs() {
-            let b = partner.index();
-            let separation = image(particles.position[b] - self.x_a);
-            let reach = self.r_a + particles.radius[b];
+            let separation = image(reads.position.get(partner) - self.x_a);
+            let reach = self.r_a + reads.radius.get(partner);
             let distance_squared = separation.length_squared();
             let touching = distance_squared < reach * reach;
             let kept_slot = KeptSlot {
@@ -664,8 +637,7 @@ fn keep<'s>(
 #[inline]
 fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     model: &Model,
-    particles: &Particles,
-    omega: Option<&[DVec3]>,
+    reads: ParticleReads<'_, 's>,
     targets: &OpenTargets<'_, 's>,
     batch: &mut Batch<'_, 's>,
     set: InstructionSet,
@@ -674,13 +646,10 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     // Known at compile time to be `None` where the instantiation leaves the physics out.
     let states = targets.states.as_ref().filter(|_| BONDS);
     let histories = targets.tangential.as_ref().filter(|_| FRICTION);
-    let omega = omega.filter(|_| FRICTION);
-    let heat = targets.heat.as_ref().filter(|_| HEAT);
+    let omega = reads.angular_velocity.filter(|_| FRICTION);
+    let melted = targets.heat.as_ref().filter(|_| HEAT).map(|h| h.melted);
     let own_slab = batch.slab.own_slab();
     let uniform = batch.lanes.uniform_material();
-    let reads = ParticleReads::of(particles);
-    let omega = omega.map(|omega| reads.cut(omega));
-    let melted = heat.map(|h| reads.cut(h.melted));
     for k in 0..batch.kept_count {
         let KeptSlot {
             owner,
@@ -688,8 +657,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             slot: p,
             separation,
         } = batch.kept[k];
-        let (a, b) = reads.pair(owner, partner);
-        let (r_a, r_b) = (reads.radius[a], reads.radius[b]);
+        let (r_a, r_b) = (reads.radius.get(owner), reads.radius.get(partner));
         let reach = r_a + r_b;
         // Without bond states the sifts keep only the touching pairs, by this very test (the
         // same operations on the same values): it is tested again only where a bonded pair
@@ -709,7 +677,8 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             model
                 .periodic
                 .is_none_or(|p| p.minimum_image(separation) == separation),
-            "a touching pair of owner {a} across a periodic face, which the list did not flag"
+            "a touching pair of owner {} across a periodic face, which the list did not flag",
+            owner.index()
         );
         // The lane's parts are stored as they come, so that few values stay live across the
         // spring's look-up (built whole, the input was held in registers and on the stack).
@@ -718,19 +687,25 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             lane,
             separation,
             [r_a, r_b],
-            [reads.mass[a], reads.mass[b]],
-            [reads.velocity[a], reads.velocity[b]],
+            [reads.mass.get(owner), reads.mass.get(partner)],
+            [reads.velocity.get(owner), reads.velocity.get(partner)],
         );
         // With one material the lanes hold its parameters already: then none is loaded.
         if !uniform {
-            let material = PairMaterial::of(model, reads.material[a], reads.material[b]);
+            let material = PairMaterial::of(
+                model,
+                reads.material.get(owner),
+                reads.material.get(partner),
+            );
             batch
                 .lanes
                 .set_pair_material::<BONDS, FRICTION>(lane, &material);
         }
         if BONDS {
             let state = states.map_or(BondState::Unbonded, |states| states.read(p));
-            let melted = melted.map_or((false, false), |melted| (melted[a], melted[b]));
+            let melted = melted.map_or((false, false), |melted| {
+                (melted.get(owner), melted.get(partner))
+            });
             let criterion = model.bond_criterion.holds(melted.0, melted.1);
             batch.lanes.set_bond(lane, state, criterion);
         }
@@ -740,7 +715,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                     let held = histories.read(own_slab, p, |slot, spring| {
                         batch.release(slot, spring);
                     });
-                    ([omega[a], omega[b]], held)
+                    ([omega.get(owner), omega.get(partner)], held)
                 }
                 _ => ([DVec3::ZERO; 2], TangentialSpring::default()),
             };
@@ -753,7 +728,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             slot: p,
         });
         if batch.filled == LANES {
-            batch.flush::<BONDS, FRICTION, HEAT>(model, particles, targets, set, summary);
+            batch.flush::<BONDS, FRICTION, HEAT>(model, reads, targets, set, summary);
         }
     }
     batch.kept_count = 0;
