@@ -44,17 +44,13 @@ pub use lanes::KernelBench;
 
 use crate::simd::InstructionSet;
 
-/// `x_b − x_a` \[m\] of particles `a` and `b` at `position`, as its minimum image across
-/// periodic axes (M.77).
+/// `x_b − x_a` \[m\] of particles at `x_a` and `x_b` \[m\], as its minimum image across the
+/// periodic axes of `periodic` (M.77; `None` takes the plain difference, as for a pair the
+/// neighbour list vouches needs no image).
 #[inline(always)]
 #[must_use]
-pub fn pair_separation(
-    periodic: Option<&Periodic>,
-    position: &[DVec3],
-    a: usize,
-    b: usize,
-) -> DVec3 {
-    let separation = position[b] - position[a];
+pub fn pair_separation(periodic: Option<&Periodic>, x_a: DVec3, x_b: DVec3) -> DVec3 {
+    let separation = x_b - x_a;
     periodic.map_or(separation, |p| p.minimum_image(separation))
 }
 
@@ -68,7 +64,7 @@ pub fn pair_geometry(
     a: usize,
     b: usize,
 ) -> (DVec3, f64) {
-    let separation = pair_separation(periodic, &particles.position, a, b);
+    let separation = pair_separation(periodic, particles.position[a], particles.position[b]);
     let distance = separation.length();
     (
         unit_normal(separation, distance),
@@ -87,7 +83,7 @@ pub fn touching_pair_geometry(
     a: usize,
     b: usize,
 ) -> Option<(DVec3, f64)> {
-    let separation = pair_separation(periodic, &particles.position, a, b);
+    let separation = pair_separation(periodic, particles.position[a], particles.position[b]);
     touching_geometry(separation, particles.radius[a] + particles.radius[b])
 }
 

@@ -11,8 +11,8 @@
 
 use glam::DVec3;
 
-use super::ForceSummary;
 use super::lanes::{self, ContactLanes, LANES, PairMaterial};
+use super::{ForceSummary, pair_separation};
 use crate::contact::BondState;
 use crate::contact::tangential::TangentialSpring;
 use crate::model::Model;
@@ -226,8 +226,11 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
     } in entries
     {
         let periodic = model.periodic.as_ref().filter(|_| minimum_image);
-        let separation = reads.position.get(partner) - reads.position.get(owner);
-        let separation = periodic.map_or(separation, |p| p.minimum_image(separation));
+        let separation = pair_separation(
+            periodic,
+            reads.position.get(owner),
+            reads.position.get(partner),
+        );
         let reach = reads.radius.get(owner) + reads.radius.get(partner);
         let touching = separation.length_squared() < reach * reach;
         let kept_slot = KeptSlot {

@@ -388,8 +388,7 @@ impl Simulation {
             let (x_a, r_a) = (position[a], radius[a]);
             for slot in list.slots(a) {
                 let b = partners[slot] as usize;
-                let separation = position[b] - x_a;
-                let separation = image.map_or(separation, |p| p.minimum_image(separation));
+                let separation = forces::pair_separation(image, x_a, position[b]);
                 if let Some((normal, overlap)) =
                     forces::touching_geometry(separation, r_a + radius[b])
                 {
