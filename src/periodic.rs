@@ -29,7 +29,9 @@ impl Periodic {
     /// between builds, so a separation is within (−3L/2, 3L/2) and one shift by L suffices: two
     /// compares instead of `round`, which on generic x86-64 (no SSE4.1) is a libm call and cost
     /// 5 % of a frictional step. Larger separations (only from far-apart test inputs) are folded
-    /// by the exact formula.
+    /// by the exact formula, with a rounding of its own ([`round_half_away`]): with `round`'s
+    /// libm call in it, the pair pass's sift kept its loop's pointers on the stack (the call may
+    /// clobber every register the loop has spare) and reloaded them for every candidate.
     #[inline]
     #[must_use]
     pub fn minimum_image(&self, separation: DVec3) -> DVec3 {
@@ -43,7 +45,7 @@ impl Periodic {
                     *component += length;
                 }
                 if component.abs() > half {
-                    *component -= length * (*component / length).round();
+                    *component -= length * round_half_away(*component / length);
                 }
             }
         }
@@ -73,9 +75,67 @@ impl Periodic {
     }
 }
 
+/// `x.round()` (to the nearest integer, halves away from zero) without a call: on generic x86-64
+/// (no SSE4.1) `f64::round` is a libm call. Exact, like `round`: `x as i64` truncates, and the
+/// fraction `x − trunc(x)` is exact in binary floating point; beyond 2^52 every `f64` is an
+/// integer already (and NaN and the infinities are returned as they are, as `round` does).
+#[inline]
+#[must_use]
+pub fn round_half_away(x: f64) -> f64 {
+    const ALL_INTEGERS: f64 = 4_503_599_627_370_496.0; // 2^52
+    if !x.is_finite() || x.abs() >= ALL_INTEGERS {
+        return x;
+    }
+    // |x| < 2^52: the cast neither saturates nor rounds.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_precision_loss)]
+    let truncated = (x as i64) as f64;
+    if (x - truncated).abs() >= 0.5 {
+        truncated + 1.0_f64.copysign(x)
+    } else {
+        // (−0.3 as i64 is 0: the sign of a zero result is x's, as `round` gives it.)
+        truncated.copysign(x)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Bit for bit `f64::round`, at the halves, just below them, at the limits of the exact
+    /// integers, for zeros of both signs and the values that are not numbers, and over a sweep.
+    #[test]
+    fn the_call_free_rounding_is_f64_round() {
+        let below_half = 0.5 - f64::EPSILON / 4.0; // 0.49999999999999994, whose x + 0.5 rounds to 1
+        let mut values = vec![
+            0.0,
+            -0.0,
+            0.5,
+            below_half,
+            1.5,
+            2.5,
+            1.0 - f64::EPSILON,
+            4_503_599_627_370_495.5,
+            4_503_599_627_370_496.0,
+            9_007_199_254_740_993.0,
+            1e300,
+            f64::MIN_POSITIVE,
+            f64::INFINITY,
+            f64::NAN,
+        ];
+        let mut sweep = 0.123_456_789_f64;
+        for _ in 0..10_000 {
+            sweep = (sweep * 1.618_033_988_75 + 0.25) % 64.0;
+            values.push(sweep - 32.0);
+        }
+        let negated: Vec<f64> = values.iter().map(|v| -v).collect();
+        for &x in values.iter().chain(&negated) {
+            let (ours, theirs) = (round_half_away(x), x.round());
+            assert!(
+                ours.to_bits() == theirs.to_bits() || (ours.is_nan() && theirs.is_nan()),
+                "round({x:e}): {ours:e} against {theirs:e}"
+            );
+        }
+    }
 
     fn box_xy() -> Periodic {
         Periodic {
