@@ -218,6 +218,9 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
             separation: DVec3::ZERO,
         })
     });
+    // The slice's pointer and length are held in registers for the loop (through the vector
+    // they were loaded again for every entry).
+    let kept = &mut batch.kept[..room];
     for NearTokens {
         owner,
         slot,
@@ -239,7 +242,7 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
             slot,
             separation,
         };
-        count = keep(&mut batch.kept, count, kept_slot, touching, states);
+        count = keep(kept, count, kept_slot, touching, states);
     }
     batch.kept_count = count;
 }
