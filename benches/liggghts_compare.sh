@@ -2,7 +2,9 @@
 # Side-by-side speed of am-sim and LIGGGHTS 3.8 on the benchmark beds of shared/bench/liggghts
 # (19,200 or 97,200 settled spheres, Hertz-Mindlin, μ = 0.5, e = 0.5, periodic x/y, dt = 1e-7 s,
 # skin 9 µm): the two programs alternate, several repetitions, medians and ratios of
-# particle-steps per second per core, at each thread count. LIGGGHTS times 5000 steps (2000 on the
+# particle-steps per second per core, at each thread count, and the median and range of the
+# ratios within a repetition (the two programs back to back: on a host whose speed drifts from
+# minute to minute, the steadier reading). LIGGGHTS times 5000 steps (2000 on the
 # 97.2k bed) after a 500-step warm-up (its second "Loop time"); am-sim times its whole run loop of
 # 500 + 5000 (500 + 2000) steps (set-up excluded).
 #
@@ -78,11 +80,16 @@ for line in open(sys.argv[1]):
     runs[(prog, size, int(heat), int(threads))].append(float(per_core))
 median = lambda key: statistics.median(runs[key])
 print("\nparticle-steps per second per core (medians of %d runs)" % len(next(iter(runs.values()))))
-print("bed | heat | threads | LIGGGHTS | am-sim | am-sim / LIGGGHTS")
+# Each repetition runs the two programs back to back, so the ratio within a repetition is less
+# touched by the host's drift from minute to minute than the ratio of the two medians, which
+# may take LIGGGHTS' median from a fast minute and am-sim's from a slow one: both are printed.
+print("bed | heat | threads | LIGGGHTS | am-sim | am-sim / LIGGGHTS | per repetition: median (range)")
 keys = sorted({(s, h, t) for _, s, h, t in runs}, key=lambda k: (len(k[0]), k))
 for s, h, t in keys:
     lig, am = median(("liggghts", s, h, t)), median(("am-sim", s, h, t))
-    print(f"{s:>4} | {h:4d} | {t:7d} | {lig:8.3e} | {am:8.3e} | {am / lig:.2f}")
+    pairs = [a / l for l, a in zip(runs[("liggghts", s, h, t)], runs[("am-sim", s, h, t)])]
+    print(f"{s:>4} | {h:4d} | {t:7d} | {lig:8.3e} | {am:8.3e} | {am / lig:.2f} | "
+          f"{statistics.median(pairs):.2f} ({min(pairs):.2f}-{max(pairs):.2f})")
 threads = sorted({t for _, _, t in keys})
 for s, h in sorted({(s, h) for s, h, _ in keys}, key=lambda k: (len(k[0]), k)):
     if len(threads) > 1:
