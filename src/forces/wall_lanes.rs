@@ -4,11 +4,12 @@
 //! A wall contact's laws are the same chain of square roots and divisions as a pair's (√(r δ),
 //! the damping's √(m k), the tangential spring's and the history's), and on a layer spread on a
 //! plate nearly half the particles touch it (`scenes/bed.toml`: 4,565 wall contacts for 10,181
-//! particles at the end of the run). One contact after the other, the particle pass took a quarter of that scene's run;
-//! here the contacts of a chunk of particles are gathered into lanes and the laws run over them
-//! in one loop, which the compiler vectorises. The lanes hold the same numbers and the laws do
-//! the same operations in the same order as one contact at a time, so every build gives bitwise
-//! the same (tested below), and so does the pass that wrote each contact out one by one.
+//! particles at the end of the run). One contact after the other, the particle pass took a
+//! quarter of that scene's run; here the contacts of a chunk of particles are gathered into
+//! lanes and the laws run over them in one loop, which the compiler vectorises. The lanes hold
+//! the same numbers and the laws do the same operations in the same order as one contact at a
+//! time, so every build gives bitwise the same (tested below), and so does the pass that wrote
+//! each contact out one by one.
 
 use glam::DVec3;
 
