@@ -29,7 +29,7 @@ impl Periodic {
     /// between builds, so a separation is within (−3L/2, 3L/2) and one shift by L suffices: two
     /// compares instead of `round`, which on generic x86-64 (no SSE4.1) is a libm call and cost
     /// 5 % of a frictional step. Larger separations (only from far-apart test inputs) are folded
-    /// by the exact formula, with a rounding of its own ([`round_half_away`]): with `round`'s
+    /// by the exact formula, with a rounding of its own (`round_half_away`): with `round`'s
     /// libm call in it, the pair pass's sift kept its loop's pointers on the stack (the call may
     /// clobber every register the loop has spare) and reloaded them for every candidate.
     #[inline]
@@ -81,7 +81,7 @@ impl Periodic {
 /// integer already (and NaN and the infinities are returned as they are, as `round` does).
 #[inline]
 #[must_use]
-pub fn round_half_away(x: f64) -> f64 {
+fn round_half_away(x: f64) -> f64 {
     const ALL_INTEGERS: f64 = 4_503_599_627_370_496.0; // 2^52
     if !x.is_finite() || x.abs() >= ALL_INTEGERS {
         return x;
