@@ -36,15 +36,7 @@ use crate::simd::{InstructionSet, Kernel, dispatch};
 
 use super::{TangentialContact, tangential_step, unit_normal};
 
-/// Contacts per batch: at least two vectors of `f64` in every build, so that two or more
-/// independent chains of square roots and divisions overlap. With 8 (one AVX-512 vector, a
-/// single chain) the AVX-512 kernel took 12.8 ns per contact in `benches/pair_kernel.rs` and
-/// 11.3 ns with 16; the 19.2k LIGGGHTS bed's step ran 1.8 % faster at 1 thread, 2.2 % at 2 and
-/// 3.1 % with heat. The AVX2 build, with two chains at 8 already, stays within ±2 %.
-pub(super) const LANES: usize = 16;
-
-/// One quantity of every lane.
-pub(super) type Lane<T> = [T; LANES];
+pub(super) use crate::simd::{LANES, Lane};
 
 /// A vector quantity of every lane, one array per component.
 #[derive(Debug, Clone, Copy, Default)]

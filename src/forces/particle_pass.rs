@@ -3,7 +3,8 @@
 //! `[thermal]` its boundary heat and laser power, and the wall overlaps for the run's guard.
 //! Parallel over chunks of particles, each particle writing only its own entries. A chunk's wall
 //! contacts fill lanes of 16, whose laws run vectorised ([`super::wall_lanes`]), and a round's
-//! write-back replays each particle's walls in order ([`WallRound`]).
+//! write-back replays each particle's walls in order ([`WallRound`]). Its boundary heat fills
+//! lanes of its own ([`crate::thermal::BoundaryLanes`], [`HeatRound`]).
 
 use glam::DVec3;
 
@@ -14,7 +15,7 @@ use crate::model::Model;
 use crate::particles::{Particles, Rotation};
 use crate::scatter::{self, Member, ParticleChunk, PerParticle, Scatter};
 use crate::simd::InstructionSet;
-use crate::thermal::{self, HeatSums, ThermalModel};
+use crate::thermal::{BoundaryLanes, HeatSums, ThermalModel};
 use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
 
 /// The particle pass: the wall contacts (normal, and with rotation tangential and rolling),
@@ -91,53 +92,65 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         let mut springs = springs.as_deref_mut().filter(|_| ROTATION);
         let heat = heat.as_ref().filter(|_| HEAT);
         let mut round = WallRound::new();
+        let mut heat_round = heat.map(|h| HeatRound::new(h, &model.walls));
         for window in chunk.windows() {
             let particle = window.owner();
             let k = particle.index();
-            // Most candidates touch no wall and hold no wall spring: without heat, they get
-            // nothing. (The full path below would add zeros to their force, lost energy and
-            // torque, which changes no bit of a finite sum, and observe a zero overlap.)
-            if !HEAT
-                && !(0..model.walls.len()).any(|w| wall_overlap(model, state, k, w) > 0.0)
-                && !springs
+            // Most particles touch no wall and hold no wall spring: their walls give nothing.
+            // (The wall path below would add zeros to their force, lost energy and torque, which
+            // changes no bit of a finite sum, and observe a zero overlap.)
+            if (0..model.walls.len()).any(|w| wall_overlap(model, state, k, w) > 0.0)
+                || springs
                     .as_deref_mut()
                     .is_some_and(|chunk| chunk.holds_any(k))
             {
-                continue;
-            }
-            let mut max_overlap: f64 = 0.0;
-            for w in 0..model.walls.len() {
-                let overlap = wall_overlap(model, state, k, w);
-                if overlap <= 0.0 {
-                    // The spring vanishes with the contact: what it held is lost.
-                    if let Some(chunk) = springs.as_deref_mut() {
-                        round.release(chunk.take(k, w).spring_energy);
+                let mut max_overlap: f64 = 0.0;
+                for w in 0..model.walls.len() {
+                    let overlap = wall_overlap(model, state, k, w);
+                    if overlap <= 0.0 {
+                        // The spring vanishes with the contact: what it held is lost.
+                        if let Some(chunk) = springs.as_deref_mut() {
+                            round.release(chunk.take(k, w).spring_energy);
+                        }
+                        continue;
                     }
-                    continue;
+                    max_overlap = max_overlap.max(overlap);
+                    let params = model.wall_params(w, state.material[k]);
+                    let (angular_velocity, friction, held) =
+                        match (friction, springs.as_deref_mut()) {
+                            (Some(tables), Some(chunk)) => (
+                                omega.map_or(DVec3::ZERO, |omega| omega[k]),
+                                *tables.wall(w, state.material[k]),
+                                chunk.take(k, w),
+                            ),
+                            _ => Default::default(),
+                        };
+                    let input = WallInput {
+                        overlap,
+                        into_domain: model.walls[w].normal,
+                        radius: state.radius[k],
+                        mass: state.mass[k],
+                        velocity: state.velocity[k],
+                        effective_modulus: params.effective_modulus,
+                        damping_ratio: params.damping_ratio,
+                        angular_velocity,
+                        friction,
+                        held,
+                    };
+                    if round.contact::<ROTATION>(particle, w, &input) {
+                        round.write_back::<ROTATION>(
+                            model,
+                            (set, interval),
+                            &outputs,
+                            springs.as_deref_mut(),
+                        );
+                    }
                 }
-                max_overlap = max_overlap.max(overlap);
-                let params = model.wall_params(w, state.material[k]);
-                let (angular_velocity, friction, held) = match (friction, springs.as_deref_mut()) {
-                    (Some(tables), Some(chunk)) => (
-                        omega.map_or(DVec3::ZERO, |omega| omega[k]),
-                        *tables.wall(w, state.material[k]),
-                        chunk.take(k, w),
-                    ),
-                    _ => Default::default(),
-                };
-                let input = WallInput {
-                    overlap,
-                    into_domain: model.walls[w].normal,
-                    radius: state.radius[k],
-                    mass: state.mass[k],
-                    velocity: state.velocity[k],
-                    effective_modulus: params.effective_modulus,
-                    damping_ratio: params.damping_ratio,
-                    angular_velocity,
-                    friction,
-                    held,
-                };
-                if round.contact::<ROTATION>(particle, w, &input) {
+                round.end_particle(particle);
+                if round.filled == 0 {
+                    // Nothing waits on the kernel (the particle's last contact filled the lanes,
+                    // or its springs all let go): its events are written now, so that they do
+                    // not pile up over the chunk.
                     round.write_back::<ROTATION>(
                         model,
                         (set, interval),
@@ -145,45 +158,16 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
                         springs.as_deref_mut(),
                     );
                 }
+                summary.observe_overlap(max_overlap / state.radius[k], k);
             }
-            round.end_particle(particle);
-            if round.filled == 0 {
-                // Nothing waits on the kernel (a particle off the walls, with heat): its events
-                // are written now, so that they do not pile up over the chunk.
-                round.write_back::<ROTATION>(
-                    model,
-                    (set, interval),
-                    &outputs,
-                    springs.as_deref_mut(),
-                );
+            if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
+                heat_round.add(h, state, set, particle, summary);
             }
-            let heat_rate = heat.map_or(0.0, |h| {
-                let mut added = None;
-                if h.exchange {
-                    let (outside, outside_conductance) =
-                        thermal::boundary_heat(h.model, &model.walls, state, k, h.temperature[k]);
-                    h.boundary_flow.update(particle, |_| outside);
-                    h.sums.update(particle, |s| HeatSums {
-                        conductance: s.conductance + outside_conductance,
-                        ..s
-                    });
-                    added = Some(outside);
-                }
-                if let Some(laser_power) = h.laser_power {
-                    added = Some(added.unwrap_or(0.0) + laser_power[k]);
-                }
-                if let Some(added) = added {
-                    h.sums.update(particle, |s| HeatSums {
-                        flow: s.flow + added,
-                        ..s
-                    });
-                }
-                h.sums.read(particle).conductance / h.heat_capacity[k]
-            });
-            summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
-            summary.observe_overlap(max_overlap / state.radius[k], k);
         }
         round.write_back::<ROTATION>(model, (set, interval), &outputs, springs);
+        if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
+            heat_round.finish(h, set, summary);
+        }
     };
     let summary = scatter::for_each_chunk(
         count,
@@ -214,6 +198,96 @@ struct ParticleHeat<'a> {
     /// Net heat flow \[W\] and total conductance [W/K].
     sums: Scatter<'a, HeatSums, PerParticle>,
     boundary_flow: Scatter<'a, f64, PerParticle>,
+}
+
+/// The heat of a chunk's particles on its way through the boundary kernel: with exchange, the
+/// particles in its lanes; each is finished (its boundary flow, laser power and largest
+/// `G_i / C_i`) once its lane has run. Without exchange each is finished at once.
+struct HeatRound<'c> {
+    /// `None` without exchange.
+    lanes: Option<BoundaryLanes>,
+    particles: Vec<Member<'c>>,
+}
+
+impl<'c> HeatRound<'c> {
+    fn new(heat: &ParticleHeat<'_>, walls: &[crate::model::Wall]) -> Self {
+        Self {
+            lanes: heat.exchange.then(|| BoundaryLanes::new(heat.model, walls)),
+            particles: Vec::with_capacity(LANES),
+        }
+    }
+
+    /// `particle`'s walls are done: its heat is added now, or when its lane has run.
+    #[inline(always)]
+    fn add(
+        &mut self,
+        heat: &ParticleHeat<'_>,
+        state: &Particles,
+        set: InstructionSet,
+        particle: Member<'c>,
+        summary: &mut ForceSummary,
+    ) {
+        let k = particle.index();
+        match &mut self.lanes {
+            Some(lanes) => {
+                lanes.set(
+                    self.particles.len(),
+                    heat.model,
+                    state,
+                    k,
+                    heat.temperature[k],
+                );
+                self.particles.push(particle);
+                if self.particles.len() == LANES {
+                    self.finish(heat, set, summary);
+                }
+            }
+            None => finish_particle(heat, particle, None, summary),
+        }
+    }
+
+    /// Runs the boundary kernel over the filled lanes and finishes their particles.
+    fn finish(&mut self, heat: &ParticleHeat<'_>, set: InstructionSet, summary: &mut ForceSummary) {
+        let Some(lanes) = self.lanes.as_mut().filter(|_| !self.particles.is_empty()) else {
+            return;
+        };
+        lanes.run(set, heat.model);
+        for (i, particle) in self.particles.drain(..).enumerate() {
+            finish_particle(heat, particle, Some(lanes.output(i)), summary);
+        }
+    }
+}
+
+/// Adds `particle`'s exchange with its boundaries (`outside`: flow \[W\] and conductance
+/// [W/K]) and its laser power to its heat sums, and takes in its `G_i / C_i`.
+#[inline(always)]
+fn finish_particle(
+    heat: &ParticleHeat<'_>,
+    particle: Member<'_>,
+    outside: Option<(f64, f64)>,
+    summary: &mut ForceSummary,
+) {
+    let k = particle.index();
+    let mut sums = heat.sums.read(particle);
+    if let Some((_, outside_conductance)) = outside {
+        sums.conductance += outside_conductance;
+    }
+    let added = match (outside, heat.laser_power) {
+        (Some((outside, _)), Some(laser_power)) => Some(outside + laser_power[k]),
+        (Some((outside, _)), None) => Some(outside),
+        // (As ever: `0.0 +` turns a power of −0 into +0.)
+        (None, Some(laser_power)) => Some(0.0 + laser_power[k]),
+        (None, None) => None,
+    };
+    if let Some(added) = added {
+        sums.flow += added;
+    }
+    heat.sums.update(particle, |_| sums);
+    if let Some((outside, _)) = outside {
+        heat.boundary_flow.update(particle, |_| outside);
+    }
+    let heat_rate = sums.conductance / heat.heat_capacity[k];
+    summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
 }
 
 /// The per-particle arrays the wall contacts add into.

@@ -25,8 +25,12 @@
 //!
 //! A scene without `[thermal]` has no `ThermalState`: no arrays, no passes.
 
+pub mod boundary;
 pub mod conduction;
 pub mod losses;
+
+pub(crate) use boundary::BoundaryLanes;
+pub use boundary::boundary_heat;
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -524,47 +528,6 @@ pub fn update_conductances(
     }));
 }
 
-/// Conductance between particle `k` and wall `w` (M.41, M.43) [W/K]; 0 if apart or adiabatic.
-fn wall_conductance(
-    model: &ThermalModel,
-    particles: &Particles,
-    k: usize,
-    w: usize,
-    wall: &Wall,
-) -> f64 {
-    if model.wall_temperatures[w].is_none() {
-        return 0.0;
-    }
-    let radius = particles.radius[k];
-    let centre_distance = (particles.position[k] - wall.point).dot(wall.normal);
-    let overlap = radius - centre_distance;
-    if overlap <= 0.0 {
-        return 0.0;
-    }
-    let k_particle = model.materials[usize::from(particles.material[k])].conductivity;
-    let k_wall = model.materials[usize::from(wall.material)].conductivity;
-    let contact = conduction::contact_radius(radius, overlap);
-    match model.conduction {
-        ConductionModel::None => 0.0,
-        ConductionModel::BatchelorObrien => {
-            conduction::batchelor_obrien(k_particle, k_wall, contact)
-        }
-        ConductionModel::ThermalPipe => conduction::thermal_pipe_wall(
-            k_particle,
-            contact,
-            centre_distance.max(f64::MIN_POSITIVE),
-        ),
-        // The circle where the sphere cuts the wall's plane: a_g² = r² − s².
-        ConductionModel::OverlapArea => conduction::overlap_area(
-            k_particle,
-            k_wall,
-            (radius * radius - centre_distance * centre_distance)
-                .max(0.0)
-                .sqrt(),
-        ),
-    }
-}
-
 /// Largest `G_i / C_i` over the particles [1/s] (M.49) for the current positions and
 /// temperatures: its inverse is the smallest thermal time constant. Fills `state`'s scratch
 /// arrays (conductances, flows).
@@ -738,47 +701,6 @@ pub fn advance(
     }
     state.substeps = substeps;
     state.max_substeps = state.max_substeps.max(substeps);
-}
-
-/// Exchange of particle `k` at temperature `t` \[K\] with isothermal walls, the gas and the
-/// surroundings: `(heat flow into it [W], total conductance [W/K])`, radiation linearised at
-/// `max(T, T_m, T_env)` (a laser may heat the particle within the step).
-#[must_use]
-#[inline]
-pub fn boundary_heat(
-    model: &ThermalModel,
-    walls: &[Wall],
-    particles: &Particles,
-    k: usize,
-    t: f64,
-) -> (f64, f64) {
-    if !model.has_boundary_exchange() {
-        return (0.0, 0.0);
-    }
-    let material = &model.materials[usize::from(particles.material[k])];
-    let area = losses::sphere_area(particles.radius[k]);
-    let (mut flow, mut conductance) = (0.0, 0.0);
-    for (w, wall) in walls.iter().enumerate() {
-        if let Some(t_wall) = model.wall_temperatures[w] {
-            let h = wall_conductance(model, particles, k, w, wall);
-            flow += h * (t_wall - t);
-            conductance += h;
-        }
-    }
-    if let Some((h, t_gas)) = model.convection {
-        flow += losses::convection(h, area, t, t_gas);
-        conductance += h * area;
-    }
-    if let Some(environment) = model.radiation {
-        flow += losses::radiation(material.emissivity, area, t, environment);
-        conductance += losses::radiation_conductance(
-            material.emissivity,
-            area,
-            t.max(material.melting_point),
-            environment,
-        );
-    }
-    (flow, conductance)
 }
 
 /// Net heat flow into every particle at the current temperatures \[W\] and its total conductance
