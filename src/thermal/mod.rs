@@ -561,6 +561,78 @@ type Chunk<'a> = (
     (Accumulators<'a>, Option<&'a mut [f64]>),
 );
 
+/// The material columns of a chunk of particles: heat capacity C \[J/K\], melting point T_m
+/// \[K\], latent heat m L \[J\].
+#[derive(Clone, Copy)]
+struct MaterialSlices<'a> {
+    heat_capacity: &'a [f64],
+    melting_point: &'a [f64],
+    latent_heat: &'a [f64],
+}
+
+/// One substep's explicit Euler update of a chunk's enthalpies, `E += dt Q` (M.49), with
+/// evaporation past the boiling enthalpy where the material boils (M.80), then `T = T(E)`
+/// (M.48) and the melt flags. Over slices of one length, so that the loop holds no bounds check
+/// and runs in the vector builds (`simd`): bitwise the same in each.
+struct EnthalpyUpdate<'a> {
+    dt: f64,
+    flows: &'a [HeatSums],
+    material: MaterialSlices<'a>,
+    /// Each particle's boiling enthalpy \[J\], if a material boils.
+    boiling: Option<&'a [f64]>,
+    enthalpy: &'a mut [f64],
+    temperature: &'a mut [f64],
+    melted: &'a mut [bool],
+    /// The heat each particle has carried off with its vapour \[J\], if a material boils.
+    evaporated: Option<&'a mut [f64]>,
+}
+
+impl crate::simd::Kernel for EnthalpyUpdate<'_> {
+    #[inline(always)]
+    fn run(self) {
+        let Self {
+            dt,
+            flows,
+            material,
+            boiling,
+            enthalpy,
+            temperature,
+            melted,
+            evaporated,
+        } = self;
+        let n = enthalpy.len();
+        let (temperature, melted, flows) = (&mut temperature[..n], &mut melted[..n], &flows[..n]);
+        let (capacity, melting, latent) = (
+            &material.heat_capacity[..n],
+            &material.melting_point[..n],
+            &material.latent_heat[..n],
+        );
+        match (boiling, evaporated) {
+            // A loop of its own, so that a scene without evaporation tests nothing more.
+            (Some(boiling), Some(evaporated)) => {
+                let (boiling, evaporated) = (&boiling[..n], &mut evaporated[..n]);
+                for i in 0..n {
+                    let (kept, carried_off) =
+                        evaporate(enthalpy[i] + dt * flows[i].flow, boiling[i]);
+                    enthalpy[i] = kept;
+                    evaporated[i] += carried_off;
+                    temperature[i] =
+                        temperature_from_enthalpy(kept, capacity[i], melting[i], latent[i]);
+                    melted[i] |= temperature[i] >= melting[i];
+                }
+            }
+            _ => {
+                for i in 0..n {
+                    enthalpy[i] += dt * flows[i].flow;
+                    temperature[i] =
+                        temperature_from_enthalpy(enthalpy[i], capacity[i], melting[i], latent[i]);
+                    melted[i] |= temperature[i] >= melting[i];
+                }
+            }
+        }
+    }
+}
+
 /// What [`advance`] needs to know about the step besides the state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepInfo<'a> {
@@ -655,37 +727,36 @@ pub fn advance(
             .zip(melted.chunks_mut(PARTICLES_PER_ITEM))
             .zip(accumulators.zip(optional_items(evaporated)))
             .collect();
+        let set = crate::simd::InstructionSet::detect();
         let update = |c: usize, (((e, t), m), (accumulated, evaporated)): Chunk<'_>| {
-            let first = c * PARTICLES_PER_ITEM;
-            let temperature_of = |k: usize, e: f64| {
-                temperature_from_enthalpy(e, heat_capacity[k], melting_point[k], latent_heat[k])
+            let particles = c * PARTICLES_PER_ITEM..c * PARTICLES_PER_ITEM + e.len();
+            let material = MaterialSlices {
+                heat_capacity: &heat_capacity[particles.clone()],
+                melting_point: &melting_point[particles.clone()],
+                latent_heat: &latent_heat[particles.clone()],
             };
-            match (evaporated, boiling_enthalpy) {
-                // A loop of its own, so that a scene without evaporation tests nothing more.
-                (Some(evaporated), Some(boiling)) => {
-                    for (k, ((e, t), (m, gone))) in
-                        (first..).zip(e.iter_mut().zip(t).zip(m.iter_mut().zip(evaporated)))
-                    {
-                        let (kept, carried_off) =
-                            evaporate(*e + dt_sub * heat_sums[k].flow, boiling[k]);
-                        *e = kept;
-                        *gone += carried_off;
-                        *t = temperature_of(k, kept);
-                        *m |= *t >= melting_point[k];
-                    }
-                }
-                _ => {
-                    for (k, ((e, t), m)) in (first..).zip(e.iter_mut().zip(t).zip(m)) {
-                        *e += dt_sub * heat_sums[k].flow;
-                        *t = temperature_of(k, *e);
-                        *m |= *t >= melting_point[k];
-                    }
-                }
-            }
+            let flows = &heat_sums[particles.clone()];
+            crate::simd::dispatch(
+                set,
+                EnthalpyUpdate {
+                    dt: dt_sub,
+                    flows,
+                    material,
+                    boiling: boiling_enthalpy.map(|b| &b[particles.clone()]),
+                    enthalpy: e,
+                    temperature: t,
+                    melted: m,
+                    evaporated,
+                },
+            );
             if let Some((laser, boundary)) = accumulated {
-                for (k, (laser, boundary)) in (first..).zip(laser.iter_mut().zip(boundary)) {
-                    *laser += dt_sub * laser_power[k];
-                    *boundary += dt_sub * boundary_flow[k];
+                let powers = laser_power[particles.clone()].iter();
+                for (laser, power) in laser.iter_mut().zip(powers) {
+                    *laser += dt_sub * power;
+                }
+                let flows = boundary_flow[particles].iter();
+                for (boundary, flow) in boundary.iter_mut().zip(flows) {
+                    *boundary += dt_sub * flow;
                 }
             }
         };
