@@ -7,12 +7,12 @@
 //! ```
 //!
 //! with the radiation's conductance linearised at `max(T, T_m, T_env)` (a laser may heat the
-//! particle within the step). [`boundary_heat`] gives one particle's; [`BoundaryLanes`] gives
-//! those of up to [`LANES`] particles at once with a vector kernel, as the wall laws run in
+//! particle within the step). [`boundary_heat`] gives one particle's; `BoundaryLanes` gives
+//! those of up to 16 particles at once with a vector kernel, as the wall laws run in
 //! `forces`: with heat from a laser or any exchange every particle of the bed takes this every
 //! step, and one particle at a time it was the largest single part of the flagship's scan (8.5 %
 //! of its samples at 1 thread, half of it one mispredicted branch on touching the plate and the
-//! square root behind it). Both evaluate the same laws ([`add_wall`], [`add_surroundings`]) with
+//! square root behind it). Both evaluate the same laws (`add_wall`, `add_surroundings`) with
 //! the same operations in the same order, so they give bitwise the same (tested below).
 
 use glam::DVec3;
