@@ -33,6 +33,7 @@ use crate::contact::{
 };
 use crate::model::Model;
 use crate::simd::{InstructionSet, Kernel, dispatch};
+use crate::thermal::conduction;
 
 use super::{TangentialContact, tangential_step, unit_normal};
 
@@ -92,9 +93,11 @@ pub(super) struct ContactOutput {
     pub force_on_a: DVec3,
     /// Energy the contact lost over the step \[J\] (M.35, M.63).
     pub lost: f64,
-    /// Overlap δ \[m\] and effective radius r* \[m\].
+    /// Overlap δ \[m\].
     pub overlap: f64,
-    pub effective_radius: f64,
+    /// Hertz contact radius `a = √(r* δ)` \[m\] (M.40), which the conduction models take: the
+    /// normal law has it at hand, so the write-back takes no square root of its own.
+    pub contact_radius: f64,
     /// δ over the smaller radius (the overlap guard's measure).
     pub overlap_ratio: f64,
     /// The bond state after the step.
@@ -127,7 +130,7 @@ pub(super) struct ContactLanes {
     force_on_a: Lane3,
     lost: Lane<f64>,
     overlap: Lane<f64>,
-    effective_radius: Lane<f64>,
+    contact_radius: Lane<f64>,
     overlap_ratio: Lane<f64>,
     new_state: Lane<BondState>,
     torque_on_a: Lane3,
@@ -325,7 +328,7 @@ impl ContactLanes {
             force_on_a: self.force_on_a.get(i),
             lost: self.lost[i],
             overlap: self.overlap[i],
-            effective_radius: self.effective_radius[i],
+            contact_radius: self.contact_radius[i],
             overlap_ratio: self.overlap_ratio[i],
             state: self.new_state[i],
             torque_on_a: self.torque_on_a.get(i),
@@ -386,7 +389,7 @@ impl ContactLanes {
         self.force_on_a.set(i, out.force_on_a);
         self.lost[i] = out.lost;
         self.overlap[i] = out.overlap;
-        self.effective_radius[i] = out.effective_radius;
+        self.contact_radius[i] = out.contact_radius;
         self.overlap_ratio[i] = out.overlap_ratio;
         if BONDS {
             self.new_state[i] = out.state;
@@ -454,7 +457,8 @@ pub(super) fn contact_step<const BONDS: bool, const FRICTION: bool, const ROLLIN
         force_on_a: -outcome.force * normal,
         lost,
         overlap,
-        effective_radius: kinematics.effective_radius,
+        // The same operations as the Hertz force's √(r* δ), which the compiler shares with it.
+        contact_radius: conduction::contact_radius(kinematics.effective_radius, overlap),
         overlap_ratio: overlap / r_a.min(r_b),
         state: outcome.state,
         ..ContactOutput::default()
@@ -809,7 +813,7 @@ pub(in crate::forces) mod tests {
         let scalars = [
             out.lost,
             out.overlap,
-            out.effective_radius,
+            out.contact_radius,
             out.overlap_ratio,
             out.spring.spring_energy,
             f64::from(u8::from(out.state == BondState::Bonded)),

@@ -435,7 +435,7 @@ impl<'r, 's> Batch<'r, 's> {
                             [reads.material.get(owner), reads.material.get(partner)],
                             [r_a, r_b],
                             out.overlap,
-                            out.effective_radius,
+                            out.contact_radius,
                         );
                         let flow =
                             conductance * (h.temperature.get(partner) - h.temperature.get(owner));

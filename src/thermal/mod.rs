@@ -470,20 +470,22 @@ impl ThermalState {
 }
 
 /// Conductance of the contact between two particles of materials `[ma, mb]` and radii
-/// `[ra, rb]` \[m\] at `overlap` \[m\] (M.41, M.42) [W/K]; 0 without overlap.
+/// `[ra, rb]` \[m\] at `overlap` \[m\], with the Hertz contact radius `contact = √(r* δ)`
+/// \[m\] ([`conduction::contact_radius`], M.40) (M.41, M.42, M.79) [W/K]; 0 without overlap.
+/// The pair pass takes the contact radius from its contact kernel, which computes it for the
+/// Hertz force: the write-back then takes no square root for it, one contact at a time.
 #[must_use]
-#[inline(always)] // in the pair pass, where √(r* δ) is shared with the contact laws
+#[inline(always)]
 pub fn pair_conductance(
     model: &ThermalModel,
     [ma, mb]: [u16; 2],
     [ra, rb]: [f64; 2],
     overlap: f64,
-    effective_radius: f64,
+    contact: f64,
 ) -> f64 {
     if overlap <= 0.0 {
         return 0.0;
     }
-    let contact = conduction::contact_radius(effective_radius, overlap);
     match model.conduction {
         ConductionModel::None => 0.0,
         // 2 k* a with k* from the per-material-pair table: no division in the hot loop.
@@ -523,8 +525,9 @@ pub fn update_conductances(
         };
         let radii = [particles.radius[a], particles.radius[b]];
         let effective_radius = crate::contact::hertz::effective_radius(radii[0], radii[1]);
+        let contact = conduction::contact_radius(effective_radius, overlap);
         let materials = [particles.material[a], particles.material[b]];
-        pair_conductance(model, materials, radii, overlap, effective_radius)
+        pair_conductance(model, materials, radii, overlap, contact)
     }));
 }
 
