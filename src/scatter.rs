@@ -623,6 +623,28 @@ impl<T, I: Counted> Scatter<'_, T, I> {
     }
 }
 
+impl<T> Scatter<'_, T, PerParticle> {
+    /// This scatter for the tokens of `chunk` alone (a chunk of [`for_each_chunk`]), without a
+    /// bounds check per access, as [`Scatter::open`] does for a slab visit.
+    ///
+    /// # Panics
+    /// If the array is shorter than the chunk's pass has particles.
+    #[inline]
+    #[must_use]
+    pub fn open_chunk<'s, 'v>(
+        &'s self,
+        chunk: &ParticleChunk<'v>,
+    ) -> Opened<'s, 'v, T, PerParticle> {
+        assert!(
+            chunk.count <= self.len,
+            "an array of {} for a pass over {} particles",
+            self.len,
+            chunk.count
+        );
+        Opened::at(self.start)
+    }
+}
+
 impl<T> Scatter<'_, T, PerSlab> {
     /// The element of `visit`'s own slab, for its tokens alone.
     ///
@@ -726,9 +748,10 @@ impl<'v, T: Copy> Opened<'_, 'v, T, PerParticle> {
     #[inline(always)]
     #[must_use]
     pub fn read(&self, k: Member<'v>) -> T {
-        // SAFETY: k is a token of the visit this scatter was opened for (its brand), below its
-        // list's particle count (`SlabVisit::new`), which the array's length was checked
-        // against (`open`); no concurrent window reaches it (`Window`'s contract).
+        // SAFETY: k is a token of the visit or chunk this scatter was opened for (its brand),
+        // below its list's particle count (`SlabVisit::new`) or its pass's (`for_each_chunk`),
+        // which the array's length was checked against (`open`, `open_chunk`); no concurrent
+        // window reaches it (`Window`'s contract).
         unsafe { self.start.add(k.index()).read() }
     }
 
@@ -855,13 +878,35 @@ impl<'s, 'v, T: Copy> OpenedReads<'s, 'v, T> {
         }
     }
 
+    /// `values` for the tokens of `chunk` alone (a chunk of [`for_each_chunk`]).
+    ///
+    /// # Panics
+    /// If `values` is shorter than the chunk's pass has particles.
+    #[inline]
+    #[must_use]
+    pub fn open_chunk(values: &'s [T], chunk: &ParticleChunk<'v>) -> Self {
+        assert!(
+            chunk.count <= values.len(),
+            "an array of {} for a pass over {} particles",
+            values.len(),
+            chunk.count
+        );
+        Self {
+            start: values.as_ptr(),
+            values: PhantomData,
+            brand: PhantomData,
+            thread: PhantomData,
+        }
+    }
+
     /// Particle `k`'s value.
     #[inline(always)]
     #[must_use]
     pub fn get(self, k: Member<'v>) -> T {
-        // SAFETY: k is a token of the visit these values were opened for (its brand), below its
-        // list's particle count (`SlabVisit::new`), which their length was checked against
-        // (`open`); the shared borrow keeps them alive and unwritten.
+        // SAFETY: k is a token of the visit or chunk these values were opened for (its brand),
+        // below its list's particle count (`SlabVisit::new`) or its pass's (`for_each_chunk`),
+        // which their length was checked against (`open`, `open_chunk`); the shared borrow
+        // keeps them alive and unwritten.
         unsafe { self.start.add(k.index()).read() }
     }
 }
@@ -924,6 +969,7 @@ where
         };
         let chunk = ParticleChunk {
             particles,
+            count,
             brand: PhantomData,
             thread: PhantomData,
         };
@@ -945,6 +991,8 @@ where
 #[derive(Debug)]
 pub struct ParticleChunk<'a> {
     particles: ChunkParticles<'a>,
+    /// The pass's particle count: every particle of the chunk lies below it.
+    count: usize,
     brand: Brand<'a>,
     thread: ThreadBound,
 }

@@ -69,6 +69,19 @@ impl Chunk {
             .is_some_and(|e| e.particle == particle)
     }
 
+    /// Whether particle `k` held a spring at the last pass against a wall `w` for which
+    /// `apart(w)`: a spring that lets go at this pass. Call after [`Chunk::holds_any`] for `k`,
+    /// before any [`Chunk::take`] for it; moves no cursor.
+    #[inline]
+    #[must_use]
+    pub fn holds_any_where(&self, k: usize, apart: impl Fn(usize) -> bool) -> bool {
+        let particle = index(k);
+        self.held[self.cursor.min(self.held.len())..]
+            .iter()
+            .take_while(|e| e.particle == particle)
+            .any(|e| apart(e.wall as usize))
+    }
+
     /// Moves the cursor past the entries before `key`: they belong to pairs the pass has gone
     /// by, and the visit order makes this at most one step per entry over the whole pass.
     #[inline]
@@ -268,6 +281,41 @@ mod tests {
         assert_eq!(store.get(2000, 0), spring(3.0));
         assert_eq!(store.get(7, 1), TangentialSpring::default());
         assert!((store.spring_energy() - 25.0).abs() < 1e-12);
+    }
+
+    /// The particle pass asks which walls a particle's springs belong to before it takes them:
+    /// the answer names that particle's springs alone, and asking moves no cursor.
+    #[test]
+    fn a_particle_s_springs_are_told_by_wall_before_they_are_taken() {
+        let n = 10;
+        let mut store = WallSprings::from_entries(
+            n,
+            [
+                (2, 0, spring(1.0)),
+                (2, 3, spring(2.0)),
+                (4, 1, spring(3.0)),
+            ],
+        );
+        let chunk = &mut store.begin_pass(n)[0];
+        assert!(!chunk.holds_any(1));
+        assert!(
+            !chunk.holds_any_where(1, |_| true),
+            "particle 2's springs are not 1's"
+        );
+        assert!(chunk.holds_any(2));
+        assert!(chunk.holds_any_where(2, |w| w == 3));
+        assert!(chunk.holds_any_where(2, |w| w == 0));
+        assert!(!chunk.holds_any_where(2, |w| w == 1 || w == 2));
+        assert!(
+            !chunk.holds_any_where(2, |w| w == 4),
+            "particle 4's wall 1 is not 2's"
+        );
+        // Nothing was taken: both springs are still there.
+        assert_eq!(chunk.take(2, 0), spring(1.0));
+        assert_eq!(chunk.take(2, 3), spring(2.0));
+        assert!(chunk.holds_any(4) && chunk.holds_any_where(4, |w| w == 1));
+        assert_eq!(chunk.take(4, 1), spring(3.0));
+        assert!(!chunk.holds_any_where(4, |_| true), "taken");
     }
 
     #[test]

@@ -9,11 +9,13 @@
 use glam::DVec3;
 
 use super::lanes::LANES;
-use super::wall_lanes::{self, WallInput, WallLanes};
-use super::{ForceSummary, PassHeat, wall_overlap};
-use crate::model::Model;
+use super::wall_lanes::{self, WallInput, WallLanes, WallOutput};
+use super::{ForceSummary, PassHeat, plane_overlap};
+use crate::contact::FrictionParams;
+use crate::contact::tangential::TangentialSpring;
+use crate::model::{Model, Wall};
 use crate::particles::{Particles, Rotation};
-use crate::scatter::{self, Member, ParticleChunk, PerParticle, Scatter};
+use crate::scatter::{self, Member, Opened, OpenedReads, ParticleChunk, PerParticle, Scatter};
 use crate::simd::InstructionSet;
 use crate::thermal::{BoundaryLanes, HeatSums, ThermalModel};
 use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
@@ -91,80 +93,116 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
                  chunk: &ParticleChunk<'_>| {
         let mut springs = springs.as_deref_mut().filter(|_| ROTATION);
         let heat = heat.as_ref().filter(|_| HEAT);
-        let mut round = WallRound::new();
+        let reads = ChunkReads::open(state, omega.filter(|_| ROTATION), chunk);
+        let outputs = outputs.open(chunk);
+        let mut round = WallRound::new(model);
         let mut heat_round = heat.map(|h| HeatRound::new(h, &model.walls));
         for window in chunk.windows() {
             let particle = window.owner();
             let k = particle.index();
+            let (position, radius) = (reads.position.get(particle), reads.radius.get(particle));
+            let overlap_with = |wall: &Wall| plane_overlap(wall, position, radius);
             // Most particles touch no wall and hold no wall spring: their walls give nothing.
             // (The wall path below would add zeros to their force, lost energy and torque, which
             // changes no bit of a finite sum, and observe a zero overlap.)
-            if (0..model.walls.len()).any(|w| wall_overlap(model, state, k, w) > 0.0)
-                || springs
-                    .as_deref_mut()
-                    .is_some_and(|chunk| chunk.holds_any(k))
-            {
-                let mut max_overlap: f64 = 0.0;
-                for w in 0..model.walls.len() {
-                    let overlap = wall_overlap(model, state, k, w);
-                    if overlap <= 0.0 {
-                        // The spring vanishes with the contact: what it held is lost.
-                        if let Some(chunk) = springs.as_deref_mut() {
-                            round.release(chunk.take(k, w).spring_energy);
-                        }
-                        continue;
-                    }
-                    max_overlap = max_overlap.max(overlap);
-                    let params = model.wall_params(w, state.material[k]);
-                    let (angular_velocity, friction, held) =
-                        match (friction, springs.as_deref_mut()) {
-                            (Some(tables), Some(chunk)) => (
-                                omega.map_or(DVec3::ZERO, |omega| omega[k]),
-                                *tables.wall(w, state.material[k]),
-                                chunk.take(k, w),
-                            ),
-                            _ => Default::default(),
-                        };
-                    let input = WallInput {
-                        overlap,
-                        into_domain: model.walls[w].normal,
-                        radius: state.radius[k],
-                        mass: state.mass[k],
-                        velocity: state.velocity[k],
-                        effective_modulus: params.effective_modulus,
-                        damping_ratio: params.damping_ratio,
-                        angular_velocity,
-                        friction,
-                        held,
-                    };
-                    if round.contact::<ROTATION>(particle, w, &input) {
-                        round.write_back::<ROTATION>(
-                            model,
-                            (set, interval),
-                            &outputs,
-                            springs.as_deref_mut(),
-                        );
-                    }
-                }
-                round.end_particle(particle);
-                if round.filled == 0 {
-                    // Nothing waits on the kernel (the particle's last contact filled the lanes,
-                    // or its springs all let go): its events are written now, so that they do
-                    // not pile up over the chunk.
+            let touching = model
+                .walls
+                .iter()
+                .filter(|wall| overlap_with(wall) > 0.0)
+                .count();
+            let holds = springs
+                .as_deref_mut()
+                .is_some_and(|chunk| chunk.holds_any(k));
+            if touching > 0 || holds {
+                let material = reads.material.get(particle);
+                let motion = (
+                    [radius, reads.mass.get(particle)],
+                    [
+                        reads.velocity.get(particle),
+                        reads
+                            .angular_velocity
+                            .map_or(DVec3::ZERO, |omega| omega.get(particle)),
+                    ],
+                );
+                let lets_go = holds
+                    && touching < model.walls.len()
+                    && springs.as_deref().is_some_and(|chunk| {
+                        chunk.holds_any_where(k, |w| overlap_with(&model.walls[w]) <= 0.0)
+                    });
+                let max_overlap = if lets_go {
+                    // A wall spring lets go (rare: a particle leaving a wall): the lanes' order
+                    // of the sums would not hold the energy it releases, so this particle's walls
+                    // are taken one after the other, after what the lanes hold is written.
                     round.write_back::<ROTATION>(
                         model,
                         (set, interval),
                         &outputs,
                         springs.as_deref_mut(),
                     );
-                }
-                summary.observe_overlap(max_overlap / state.radius[k], k);
+                    round.finish(&outputs);
+                    let mut sums = WallSums::default();
+                    let mut max_overlap: f64 = 0.0;
+                    for (w, wall) in model.walls.iter().enumerate() {
+                        let overlap = overlap_with(wall);
+                        let held = springs
+                            .as_deref_mut()
+                            .map_or_else(TangentialSpring::default, |chunk| chunk.take(k, w));
+                        if overlap <= 0.0 {
+                            // The spring vanishes with the contact: what it held is lost.
+                            sums.lost += held.spring_energy;
+                            continue;
+                        }
+                        max_overlap = max_overlap.max(overlap);
+                        let input = wall_input(model, (w, material), overlap, motion, held);
+                        let out = if ROTATION && input.friction.rolling != 0.0 {
+                            wall_lanes::wall_step::<ROTATION, true>(interval, &input)
+                        } else {
+                            wall_lanes::wall_step::<ROTATION, false>(interval, &input)
+                        };
+                        sums.add::<ROTATION>(&out, wall.normal);
+                        if let Some(chunk) = springs.as_deref_mut() {
+                            chunk.keep(k, w, out.spring);
+                        }
+                    }
+                    sums.write(&outputs, particle);
+                    max_overlap
+                } else {
+                    // No spring lets go: every wall with a spring touches, and the others hold
+                    // none to take.
+                    let mut max_overlap: f64 = 0.0;
+                    for (w, wall) in model.walls.iter().enumerate() {
+                        let overlap = overlap_with(wall);
+                        if overlap <= 0.0 {
+                            continue;
+                        }
+                        max_overlap = max_overlap.max(overlap);
+                        let held = springs
+                            .as_deref_mut()
+                            .map_or_else(TangentialSpring::default, |chunk| chunk.take(k, w));
+                        if round.contact::<ROTATION>(
+                            model,
+                            (particle, material),
+                            w,
+                            (overlap, motion, held),
+                        ) {
+                            round.write_back::<ROTATION>(
+                                model,
+                                (set, interval),
+                                &outputs,
+                                springs.as_deref_mut(),
+                            );
+                        }
+                    }
+                    max_overlap
+                };
+                summary.observe_overlap(max_overlap / radius, k);
             }
             if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
                 heat_round.add(h, state, set, particle, summary);
             }
         }
         round.write_back::<ROTATION>(model, (set, interval), &outputs, springs);
+        round.finish(&outputs);
         if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
             heat_round.finish(h, set, summary);
         }
@@ -290,6 +328,46 @@ fn finish_particle(
     summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
 }
 
+/// A particle's `[radius (m), mass (kg)]` and `[velocity (m/s), angular velocity (rad/s)]`
+/// (zero without rotation), as its wall contacts take them.
+type Motion = ([f64; 2], [DVec3; 2]);
+
+/// The friction parameters of `wall` and `material` (zero without friction).
+#[inline(always)]
+fn wall_friction(model: &Model, wall: usize, material: u16) -> FrictionParams {
+    model
+        .friction
+        .as_ref()
+        .map_or(FrictionParams::default(), |tables| {
+            *tables.wall(wall, material)
+        })
+}
+
+/// The laws' input for a particle of `material` touching `wall` with `overlap` \[m\], its
+/// `motion` and the spring `held` the last pass left.
+#[inline(always)]
+fn wall_input(
+    model: &Model,
+    (wall, material): (usize, u16),
+    overlap: f64,
+    ([radius, mass], [velocity, angular_velocity]): Motion,
+    held: TangentialSpring,
+) -> WallInput {
+    let params = model.wall_params(wall, material);
+    WallInput {
+        overlap,
+        into_domain: model.walls[wall].normal,
+        radius,
+        mass,
+        velocity,
+        effective_modulus: params.effective_modulus,
+        damping_ratio: params.damping_ratio,
+        angular_velocity,
+        friction: wall_friction(model, wall, material),
+        held,
+    }
+}
+
 /// The per-particle arrays the wall contacts add into.
 struct Outputs<'a> {
     force: Scatter<'a, DVec3, PerParticle>,
@@ -297,106 +375,184 @@ struct Outputs<'a> {
     torque: Option<Scatter<'a, DVec3, PerParticle>>,
 }
 
-/// What happened at one wall of one particle, in the order of the particles and their walls:
-/// what [`WallRound::write_back`] replays, so that every particle's sums are formed in that order.
-#[derive(Debug, Clone, Copy)]
-enum WallEvent<'c> {
-    /// A contact, whose laws run in the next lane of the round.
-    Contact { particle: Member<'c>, wall: usize },
-    /// A wall spring of a contact that ended, holding `energy` \[J\]: lost.
-    Released { energy: f64 },
-    /// The particle's walls are done: its sums are written.
-    End { particle: Member<'c> },
+impl Outputs<'_> {
+    /// The outputs for the particles of `chunk` alone, without a bounds check per access.
+    fn open<'s, 'v>(&'s self, chunk: &ParticleChunk<'v>) -> OpenOutputs<'s, 'v> {
+        OpenOutputs {
+            force: self.force.open_chunk(chunk),
+            lost: self.lost.open_chunk(chunk),
+            torque: self.torque.as_ref().map(|t| t.open_chunk(chunk)),
+        }
+    }
 }
 
-/// The wall contacts of a chunk's particles on their way through the wall kernel: the lanes
-/// being filled, the events since the last write-back, and the sums of the particle being
-/// written back (a particle's contacts may straddle two rounds).
-struct WallRound<'c> {
-    lanes: WallLanes,
-    filled: usize,
-    events: Vec<WallEvent<'c>>,
-    /// Force \[N\], torque [N·m] and lost energy \[J\] of the particle's walls written back so
-    /// far, for its [`WallEvent::End`].
-    sums: (DVec3, DVec3, f64),
+/// [`Outputs`] opened for one chunk ([`Scatter::open_chunk`]).
+struct OpenOutputs<'s, 'v> {
+    force: Opened<'s, 'v, DVec3, PerParticle>,
+    lost: Opened<'s, 'v, f64, PerParticle>,
+    torque: Option<Opened<'s, 'v, DVec3, PerParticle>>,
 }
 
-impl<'c> WallRound<'c> {
-    /// An empty round.
-    fn new() -> Self {
+/// The particle arrays the wall path reads, opened for one chunk ([`OpenedReads::open_chunk`]):
+/// their lengths are checked once per chunk, not at every read.
+#[derive(Clone, Copy)]
+struct ChunkReads<'p, 'v> {
+    position: OpenedReads<'p, 'v, DVec3>,
+    radius: OpenedReads<'p, 'v, f64>,
+    mass: OpenedReads<'p, 'v, f64>,
+    velocity: OpenedReads<'p, 'v, DVec3>,
+    material: OpenedReads<'p, 'v, u16>,
+    /// With rotation: the angular velocities \[rad/s\].
+    angular_velocity: Option<OpenedReads<'p, 'v, DVec3>>,
+}
+
+impl<'p, 'v> ChunkReads<'p, 'v> {
+    fn open(
+        particles: &'p Particles,
+        omega: Option<&'p [DVec3]>,
+        chunk: &ParticleChunk<'v>,
+    ) -> Self {
         Self {
-            lanes: WallLanes::default(),
-            filled: 0,
-            events: Vec::with_capacity(2 * LANES),
-            sums: (DVec3::ZERO, DVec3::ZERO, 0.0),
+            position: OpenedReads::open_chunk(&particles.position, chunk),
+            radius: OpenedReads::open_chunk(&particles.radius, chunk),
+            mass: OpenedReads::open_chunk(&particles.mass, chunk),
+            velocity: OpenedReads::open_chunk(&particles.velocity, chunk),
+            material: OpenedReads::open_chunk(&particles.material, chunk),
+            angular_velocity: omega.map(|omega| OpenedReads::open_chunk(omega, chunk)),
+        }
+    }
+}
+
+/// One particle's wall contacts summed in the order of its walls: force \[N\], torque [N·m]
+/// and lost energy \[J\].
+#[derive(Debug, Clone, Copy, Default)]
+struct WallSums {
+    force: DVec3,
+    torque: DVec3,
+    lost: f64,
+}
+
+impl WallSums {
+    /// Adds what the laws gave one contact with the wall of unit normal `normal`.
+    #[inline(always)]
+    fn add<const FRICTION: bool>(&mut self, out: &WallOutput, normal: DVec3) {
+        self.force += out.normal_force * normal;
+        self.lost += out.damper_lost;
+        if FRICTION {
+            self.force += out.tangential_force;
+            self.torque += out.torque;
+            self.lost += out.tangential_lost;
         }
     }
 
-    /// A wall spring that held `energy` \[J\] is lost.
-    fn release(&mut self, energy: f64) {
-        self.events.push(WallEvent::Released { energy });
+    /// Adds the sums to `particle`'s force, lost energy and torque.
+    #[inline(always)]
+    fn write<'v>(&self, outputs: &OpenOutputs<'_, 'v>, particle: Member<'v>) {
+        outputs.force.update(particle, |f| f + self.force);
+        outputs.lost.update(particle, |l| l + self.lost);
+        if let Some(t) = &outputs.torque {
+            t.update(particle, |t| t + self.torque);
+        }
+    }
+}
+
+/// The wall contacts of a chunk's particles on their way through the wall kernel: the lanes
+/// being filled with the particle and wall of each, and the sums of the particle being written
+/// back (a particle's contacts may straddle two rounds). A particle's contacts fill consecutive
+/// lanes in the order of its walls, so its sums are complete when a lane of the next particle
+/// comes, or the chunk ends.
+struct WallRound<'c> {
+    lanes: WallLanes,
+    filled: usize,
+    /// The particle and wall of each filled lane.
+    particles: Vec<Member<'c>>,
+    walls: [usize; LANES],
+    /// The particle whose sums are being formed, and its sums so far.
+    open: Option<(Member<'c>, WallSums)>,
+}
+
+impl<'c> WallRound<'c> {
+    /// An empty round for the wall contacts of `model`.
+    fn new(model: &Model) -> Self {
+        Self {
+            lanes: WallLanes::for_model(model),
+            filled: 0,
+            particles: Vec::with_capacity(LANES),
+            walls: [0; LANES],
+            open: None,
+        }
     }
 
-    /// `particle` touches wall `wall`: its laws go into the next lane. Returns whether the
-    /// lanes are full, to be written back before the next contact.
+    /// `particle` (of `material`) touches wall `wall` with `(overlap, motion, held)` (as
+    /// [`wall_input`] takes them): its laws go into the next lane. Returns whether the lanes
+    /// are full, to be written back before the next contact.
+    #[inline(always)]
     fn contact<const FRICTION: bool>(
         &mut self,
-        particle: Member<'c>,
+        model: &Model,
+        (particle, material): (Member<'c>, u16),
         wall: usize,
-        input: &WallInput,
+        (overlap, (size, motion), held): (f64, Motion, TangentialSpring),
     ) -> bool {
-        self.lanes.set::<FRICTION>(self.filled, input);
+        let lane = self.filled;
+        // With one wall and one material the lanes hold its normal and parameters already.
+        if !self.lanes.uniform_wall() {
+            let params = model.wall_params(wall, material);
+            self.lanes.set_wall::<FRICTION>(
+                lane,
+                model.walls[wall].normal,
+                [params.effective_modulus, params.damping_ratio],
+                &wall_friction(model, wall, material),
+            );
+        }
+        self.lanes
+            .set_motion::<FRICTION>(lane, overlap, size, motion, held);
+        self.walls[lane] = wall;
+        self.particles.push(particle);
         self.filled += 1;
-        self.events.push(WallEvent::Contact { particle, wall });
         self.filled == LANES
     }
 
-    /// `particle`'s walls are done.
-    fn end_particle(&mut self, particle: Member<'c>) {
-        self.events.push(WallEvent::End { particle });
-    }
-
-    /// Runs the laws of the filled lanes and writes back every event in order: each particle's
-    /// force, lost energy and torque summed over its walls and added once, its springs kept.
+    /// Runs the laws of the filled lanes and writes them back in order: each particle's force,
+    /// lost energy and torque summed over its walls and added once, its springs kept. The last
+    /// particle's sums stay open ([`Self::finish`]).
     fn write_back<const FRICTION: bool>(
         &mut self,
         model: &Model,
         (set, interval): (InstructionSet, f64),
-        outputs: &Outputs<'_>,
+        outputs: &OpenOutputs<'_, 'c>,
         mut springs: Option<&mut Chunk>,
     ) {
-        if self.filled > 0 {
-            wall_lanes::run::<FRICTION>(set, interval, &mut self.lanes);
+        if self.filled == 0 {
+            return;
         }
-        let (mut force, mut torque, mut lost) = self.sums;
-        let mut lane = 0;
-        for event in self.events.drain(..) {
-            match event {
-                WallEvent::Released { energy } => lost += energy,
-                WallEvent::Contact { particle, wall } => {
-                    let out = self.lanes.output::<FRICTION>(lane);
-                    lane += 1;
-                    force += out.normal_force * model.walls[wall].normal;
-                    lost += out.damper_lost;
-                    if let Some(chunk) = springs.as_deref_mut().filter(|_| FRICTION) {
-                        force += out.tangential_force;
-                        torque += out.torque;
-                        lost += out.tangential_lost;
-                        chunk.keep(particle.index(), wall, out.spring);
+        wall_lanes::run::<FRICTION>(set, interval, &mut self.lanes);
+        for (lane, &particle) in self.particles.iter().enumerate() {
+            let sums = match &mut self.open {
+                Some((open, sums)) if open.index() == particle.index() => sums,
+                open => {
+                    if let Some((done, sums)) = open.take() {
+                        sums.write(outputs, done);
                     }
+                    &mut open.insert((particle, WallSums::default())).1
                 }
-                WallEvent::End { particle } => {
-                    outputs.force.update(particle, |f| f + force);
-                    outputs.lost.update(particle, |l| l + lost);
-                    if let Some(t) = &outputs.torque {
-                        t.update(particle, |t| t + torque);
-                    }
-                    (force, torque, lost) = (DVec3::ZERO, DVec3::ZERO, 0.0);
-                }
+            };
+            let wall = self.walls[lane];
+            let out = self.lanes.output::<FRICTION>(lane);
+            sums.add::<FRICTION>(&out, model.walls[wall].normal);
+            if let Some(chunk) = springs.as_deref_mut().filter(|_| FRICTION) {
+                chunk.keep(particle.index(), wall, out.spring);
             }
         }
-        debug_assert_eq!(lane, self.filled, "every lane filled is written back");
+        self.particles.clear();
         self.filled = 0;
-        self.sums = (force, torque, lost);
+    }
+
+    /// Writes the open particle's sums (after the last [`Self::write_back`] of its lanes).
+    fn finish(&mut self, outputs: &OpenOutputs<'_, 'c>) {
+        debug_assert_eq!(self.filled, 0, "every lane written back");
+        if let Some((particle, sums)) = self.open.take() {
+            sums.write(outputs, particle);
+        }
     }
 }
