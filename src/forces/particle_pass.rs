@@ -175,7 +175,10 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
                         if overlap <= 0.0 {
                             continue;
                         }
-                        max_overlap = max_overlap.max(overlap);
+                        // (`f64::max` without its NaN select: a NaN overlap fails both tests.)
+                        if overlap > max_overlap {
+                            max_overlap = overlap;
+                        }
                         let held = springs
                             .as_deref_mut()
                             .map_or_else(TangentialSpring::default, |chunk| chunk.take(k, w));
@@ -527,16 +530,20 @@ impl<'c> WallRound<'c> {
             return;
         }
         wall_lanes::run::<FRICTION>(set, interval, &mut self.lanes);
+        // Held in locals for the loop (in the round, they were copied through memory at every
+        // change of particle).
+        let (mut open, mut sums) = match self.open {
+            Some((particle, sums)) => (Some(particle), sums),
+            None => (None, WallSums::default()),
+        };
         for (lane, &particle) in self.particles.iter().enumerate() {
-            let sums = match &mut self.open {
-                Some((open, sums)) if open.index() == particle.index() => sums,
-                open => {
-                    if let Some((done, sums)) = open.take() {
-                        sums.write(outputs, done);
-                    }
-                    &mut open.insert((particle, WallSums::default())).1
+            if open.is_none_or(|open| open.index() != particle.index()) {
+                if let Some(done) = open {
+                    sums.write(outputs, done);
                 }
-            };
+                open = Some(particle);
+                sums = WallSums::default();
+            }
             let wall = self.walls[lane];
             let out = self.lanes.output::<FRICTION>(lane);
             sums.add::<FRICTION>(&out, model.walls[wall].normal);
@@ -544,6 +551,7 @@ impl<'c> WallRound<'c> {
                 chunk.keep(particle.index(), wall, out.spring);
             }
         }
+        self.open = open.map(|particle| (particle, sums));
         self.particles.clear();
         self.filled = 0;
     }
