@@ -1,10 +1,13 @@
 //! The particle pass: what each particle adds on its own after the pair pass (gravity is set by
 //! the drift): its wall contacts (normal, and with rotation tangential and rolling), with
 //! `[thermal]` its boundary heat and laser power, and the wall overlaps for the run's guard.
-//! Parallel over chunks of particles, each particle writing only its own entries. A chunk's wall
-//! contacts fill lanes of 16, whose laws run vectorised ([`super::wall_lanes`]), and a round's
-//! write-back replays each particle's walls in order ([`WallRound`]). Its boundary heat fills
-//! lanes of its own ([`crate::thermal::BoundaryLanes`], [`HeatRound`]).
+//! Parallel over chunks of particles, each particle writing only its own entries, through
+//! accessors opened once per chunk. A chunk's wall contacts fill lanes of 16, whose laws run
+//! vectorised ([`super::wall_lanes`]); each lane names its particle and wall, a particle's walls
+//! fill consecutive lanes, and the write-back sums them in wall order ([`WallRound`]). A
+//! particle whose wall spring lets go (it left a wall) takes its walls one after the other
+//! instead, so that the energy the spring held is summed in the same order. Its boundary heat
+//! fills lanes of its own ([`crate::thermal::BoundaryLanes`], [`HeatRound`]).
 
 use glam::DVec3;
 
