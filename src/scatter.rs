@@ -657,6 +657,33 @@ impl<T> Scatter<'_, T, PerSlab> {
     }
 }
 
+/// What hands out particle tokens branded `'v`, each below a count: a slab visit of the pair
+/// pass (below its list's particle count) or a chunk of a pass over particles (below the pass's,
+/// [`for_each_chunk`]). Arrays opened for it ([`OpenedReads::open`]) are checked against that
+/// count once. Sealed: only this module's visits vouch for their tokens.
+pub trait ParticleTokens<'v>: sealed::Sealed {
+    /// Every particle token handed out names a particle below this count.
+    fn particle_count(&self) -> usize;
+}
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for super::SlabVisit<'_> {}
+    impl Sealed for super::ParticleChunk<'_> {}
+}
+
+impl<'v> ParticleTokens<'v> for SlabVisit<'v> {
+    fn particle_count(&self) -> usize {
+        PerParticle::count(self)
+    }
+}
+
+impl<'v> ParticleTokens<'v> for ParticleChunk<'v> {
+    fn particle_count(&self) -> usize {
+        self.count
+    }
+}
+
 /// A [`Scatter`] opened for one slab visit, whose lifetime `'v` brands its tokens: it takes that
 /// visit's tokens only, and its length was checked once, when it was opened, against every index
 /// they can name (the list's particle or slot count; a per-slab scatter holds the visit's own
@@ -857,39 +884,18 @@ impl<T> Clone for OpenedReads<'_, '_, T> {
 impl<T> Copy for OpenedReads<'_, '_, T> {}
 
 impl<'s, 'v, T: Copy> OpenedReads<'s, 'v, T> {
-    /// `values` for the tokens of `visit` alone.
+    /// `values` for the particle tokens of `tokens` alone: a slab visit's, or a chunk's.
     ///
     /// # Panics
-    /// If `values` is shorter than the visit's list has particles.
+    /// If `values` is shorter than the visit's list (the chunk's pass) has particles.
     #[inline]
     #[must_use]
-    pub fn open(values: &'s [T], visit: &SlabVisit<'v>) -> Self {
-        let count = PerParticle::count(visit);
+    pub fn open(values: &'s [T], tokens: &impl ParticleTokens<'v>) -> Self {
+        let count = tokens.particle_count();
         assert!(
             count <= values.len(),
             "an array of {} for a list of {count} particles",
             values.len()
-        );
-        Self {
-            start: values.as_ptr(),
-            values: PhantomData,
-            brand: PhantomData,
-            thread: PhantomData,
-        }
-    }
-
-    /// `values` for the tokens of `chunk` alone (a chunk of [`for_each_chunk`]).
-    ///
-    /// # Panics
-    /// If `values` is shorter than the chunk's pass has particles.
-    #[inline]
-    #[must_use]
-    pub fn open_chunk(values: &'s [T], chunk: &ParticleChunk<'v>) -> Self {
-        assert!(
-            chunk.count <= values.len(),
-            "an array of {} for a pass over {} particles",
-            values.len(),
-            chunk.count
         );
         Self {
             start: values.as_ptr(),
@@ -904,9 +910,9 @@ impl<'s, 'v, T: Copy> OpenedReads<'s, 'v, T> {
     #[must_use]
     pub fn get(self, k: Member<'v>) -> T {
         // SAFETY: k is a token of the visit or chunk these values were opened for (its brand),
-        // below its list's particle count (`SlabVisit::new`) or its pass's (`for_each_chunk`),
-        // which their length was checked against (`open`, `open_chunk`); the shared borrow
-        // keeps them alive and unwritten.
+        // below its particle count (`ParticleTokens`: its list's, `SlabVisit::new`, or its
+        // pass's, `for_each_chunk`), which their length was checked against (`open`); the
+        // shared borrow keeps them alive and unwritten.
         unsafe { self.start.add(k.index()).read() }
     }
 }

@@ -12,7 +12,7 @@
 use glam::DVec3;
 
 use super::lanes::{self, ContactLanes, LANES, PairMaterial};
-use super::{ForceSummary, pair_separation};
+use super::{ForceSummary, ParticleReads, pair_separation};
 use crate::contact::BondState;
 use crate::contact::tangential::TangentialSpring;
 use crate::model::Model;
@@ -157,37 +157,6 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         },
         ForceSummary::merge,
     )
-}
-
-/// The particle arrays the pair pass reads, opened for one slab visit ([`OpenedReads`]): their
-/// lengths are checked once per visit, and a read with one of the visit's tokens takes no bounds
-/// check. (Cut to the particle count and indexed by a pair's two indices, checked once per pair,
-/// they took a compare and a branch per near-list entry and per contact in each of the sift, the
-/// fill and the write-back: about 13 instructions per particle-step on the 19.2k LIGGGHTS bed.)
-#[derive(Clone, Copy)]
-struct ParticleReads<'p, 'v> {
-    position: OpenedReads<'p, 'v, DVec3>,
-    radius: OpenedReads<'p, 'v, f64>,
-    mass: OpenedReads<'p, 'v, f64>,
-    velocity: OpenedReads<'p, 'v, DVec3>,
-    material: OpenedReads<'p, 'v, u16>,
-    /// With rotation: the angular velocities \[rad/s\].
-    angular_velocity: Option<OpenedReads<'p, 'v, DVec3>>,
-}
-
-impl<'p, 'v> ParticleReads<'p, 'v> {
-    /// The arrays of `particles` and the angular velocities `omega`, for the tokens of `visit`.
-    #[inline]
-    fn open(particles: &'p Particles, omega: Option<&'p [DVec3]>, visit: &SlabVisit<'v>) -> Self {
-        Self {
-            position: OpenedReads::open(&particles.position, visit),
-            radius: OpenedReads::open(&particles.radius, visit),
-            mass: OpenedReads::open(&particles.mass, visit),
-            velocity: OpenedReads::open(&particles.velocity, visit),
-            material: OpenedReads::open(&particles.material, visit),
-            angular_velocity: omega.map(|omega| OpenedReads::open(omega, visit)),
-        }
-    }
 }
 
 /// Near-list entries sifted before their kept slots are handled: about a hundred kept slots, as

@@ -13,12 +13,12 @@ use glam::DVec3;
 
 use super::lanes::LANES;
 use super::wall_lanes::{self, WallInput, WallLanes, WallOutput};
-use super::{ForceSummary, PassHeat, plane_overlap};
+use super::{ForceSummary, ParticleReads, PassHeat, plane_overlap};
 use crate::contact::FrictionParams;
 use crate::contact::tangential::TangentialSpring;
 use crate::model::{Model, Wall};
 use crate::particles::{Particles, Rotation};
-use crate::scatter::{self, Member, Opened, OpenedReads, ParticleChunk, PerParticle, Scatter};
+use crate::scatter::{self, Member, Opened, ParticleChunk, PerParticle, Scatter};
 use crate::simd::InstructionSet;
 use crate::thermal::{BoundaryLanes, HeatSums, ThermalModel};
 use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
@@ -96,7 +96,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
                  chunk: &ParticleChunk<'_>| {
         let mut springs = springs.as_deref_mut().filter(|_| ROTATION);
         let heat = heat.as_ref().filter(|_| HEAT);
-        let reads = ChunkReads::open(state, omega.filter(|_| ROTATION), chunk);
+        let reads = ParticleReads::open(state, omega.filter(|_| ROTATION), chunk);
         let outputs = outputs.open(chunk);
         let mut round = WallRound::new(model);
         let mut heat_round = heat.map(|h| HeatRound::new(h, &model.walls));
@@ -397,36 +397,6 @@ struct OpenOutputs<'s, 'v> {
     force: Opened<'s, 'v, DVec3, PerParticle>,
     lost: Opened<'s, 'v, f64, PerParticle>,
     torque: Option<Opened<'s, 'v, DVec3, PerParticle>>,
-}
-
-/// The particle arrays the wall path reads, opened for one chunk ([`OpenedReads::open_chunk`]):
-/// their lengths are checked once per chunk, not at every read.
-#[derive(Clone, Copy)]
-struct ChunkReads<'p, 'v> {
-    position: OpenedReads<'p, 'v, DVec3>,
-    radius: OpenedReads<'p, 'v, f64>,
-    mass: OpenedReads<'p, 'v, f64>,
-    velocity: OpenedReads<'p, 'v, DVec3>,
-    material: OpenedReads<'p, 'v, u16>,
-    /// With rotation: the angular velocities \[rad/s\].
-    angular_velocity: Option<OpenedReads<'p, 'v, DVec3>>,
-}
-
-impl<'p, 'v> ChunkReads<'p, 'v> {
-    fn open(
-        particles: &'p Particles,
-        omega: Option<&'p [DVec3]>,
-        chunk: &ParticleChunk<'v>,
-    ) -> Self {
-        Self {
-            position: OpenedReads::open_chunk(&particles.position, chunk),
-            radius: OpenedReads::open_chunk(&particles.radius, chunk),
-            mass: OpenedReads::open_chunk(&particles.mass, chunk),
-            velocity: OpenedReads::open_chunk(&particles.velocity, chunk),
-            material: OpenedReads::open_chunk(&particles.material, chunk),
-            angular_velocity: omega.map(|omega| OpenedReads::open_chunk(omega, chunk)),
-        }
-    }
 }
 
 /// One particle's wall contacts summed in the order of its walls: force \[N\], torque [N·m]

@@ -379,31 +379,14 @@ mod tests {
     /// given every input do. With a second wall the lanes hold none.
     #[test]
     fn lanes_of_a_one_wall_one_material_model_hold_its_wall() {
-        let text = r#"
-[scene]
-version = 1
-[simulation]
-dt_s = 1e-7
-duration_s = 1e-6
-[materials.m]
-density_kg_m3 = 7950
-youngs_modulus_pa = 1e9
-poisson_ratio = 0.3
-[contact]
-model = "hertz"
-restitution = 0.5
-friction_coefficient = 0.5
-rolling_friction_coefficient = 0.1
-[[walls]]
-point_m = [0.0, 0.0, 0.0]
-normal = [0.0, 0.6, 0.8]
-material = "m"
-[[particles]]
-position_m = [0.0, 0.0, 1e-3]
-radius_m = 2e-5
-material = "m"
-"#;
-        let scene = crate::scene::Scene::from_toml(text).expect("the test's scene");
+        let text = crate::forces::tests::plate_scene("")
+            .replace(
+                "friction_coefficient = 0.5",
+                "friction_coefficient = 0.5\nrolling_friction_coefficient = 0.1",
+            )
+            .replace("normal = [0.0, 0.0, 1.0]", "normal = [0.0, 0.6, 0.8]")
+            + "[[particles]]\nposition_m = [0.0, 0.0, 1e-3]\nradius_m = 2e-5\nmaterial = \"m\"\n";
+        let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
         let model = Model::build(&scene).0;
         let mut uniform = WallLanes::for_model(&model);
         assert!(uniform.uniform_wall());
