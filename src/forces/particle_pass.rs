@@ -12,9 +12,8 @@
 use glam::DVec3;
 
 use super::lanes::LANES;
-use super::wall_lanes::{self, WallInput, WallLanes, WallOutput};
+use super::wall_lanes::{self, WallInput, WallLanes, WallOutput, wall_friction};
 use super::{ForceSummary, ParticleReads, PassHeat, plane_overlap};
-use crate::contact::FrictionParams;
 use crate::contact::tangential::TangentialSpring;
 use crate::model::{Model, Wall};
 use crate::particles::{Particles, Rotation};
@@ -338,17 +337,6 @@ fn finish_particle(
 /// (zero without rotation), as its wall contacts take them.
 type Motion = ([f64; 2], [DVec3; 2]);
 
-/// The friction parameters of `wall` and `material` (zero without friction).
-#[inline(always)]
-fn wall_friction(model: &Model, wall: usize, material: u16) -> FrictionParams {
-    model
-        .friction
-        .as_ref()
-        .map_or(FrictionParams::default(), |tables| {
-            *tables.wall(wall, material)
-        })
-}
-
 /// The laws' input for a particle of `material` touching `wall` with `overlap` \[m\], its
 /// `motion` and the spring `held` the last pass left.
 #[inline(always)]
@@ -473,13 +461,8 @@ impl<'c> WallRound<'c> {
         let lane = self.filled;
         // With one wall and one material the lanes hold its normal and parameters already.
         if !self.lanes.uniform_wall() {
-            let params = model.wall_params(wall, material);
-            self.lanes.set_wall::<FRICTION>(
-                lane,
-                model.walls[wall].normal,
-                [params.effective_modulus, params.damping_ratio],
-                &wall_friction(model, wall, material),
-            );
+            self.lanes
+                .set_model_wall::<FRICTION>(lane, model, wall, material);
         }
         self.lanes
             .set_motion::<FRICTION>(lane, overlap, size, motion, held);

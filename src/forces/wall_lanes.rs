@@ -117,6 +117,18 @@ pub(super) fn wall_step<const FRICTION: bool, const ROLLING: bool>(
     out
 }
 
+/// The friction parameters of wall `wall` and a particle of `material` in `model` (zero
+/// without friction).
+#[inline(always)]
+pub(super) fn wall_friction(model: &Model, wall: usize, material: u16) -> FrictionParams {
+    model
+        .friction
+        .as_ref()
+        .map_or(FrictionParams::default(), |tables| {
+            *tables.wall(wall, material)
+        })
+}
+
 /// Up to [`LANES`] wall contacts, one array per quantity, and what the laws gave them.
 #[derive(Debug, Clone, Default)]
 pub(super) struct WallLanes {
@@ -148,26 +160,35 @@ pub(super) struct WallLanes {
 impl WallLanes {
     /// Empty lanes for the wall contacts of `model`. With one wall and one material every
     /// contact has the same normal and parameters: the lanes take them here, once, instead of
-    /// one contact at a time (nine stores per contact, and the tables' look-ups, fewer).
+    /// one contact at a time (eight stores per contact, and the tables' look-ups, fewer).
     pub(super) fn for_model(model: &Model) -> Self {
         let mut lanes = Self::default();
         if model.walls.len() == 1 && model.materials.len() == 1 {
-            let params = model.wall_params(0, 0);
-            let friction = model
-                .friction
-                .as_ref()
-                .map_or(FrictionParams::default(), |tables| *tables.wall(0, 0));
             for i in 0..LANES {
-                lanes.set_wall::<true>(
-                    i,
-                    model.walls[0].normal,
-                    [params.effective_modulus, params.damping_ratio],
-                    &friction,
-                );
+                lanes.set_model_wall::<true>(i, model, 0, 0);
             }
             lanes.uniform_wall = true;
         }
         lanes
+    }
+
+    /// Puts wall `wall` of `model`, touched by a particle of `material`, into lane `i`
+    /// ([`Self::set_wall`] with the model's normal and parameters).
+    #[inline(always)]
+    pub(super) fn set_model_wall<const FRICTION: bool>(
+        &mut self,
+        i: usize,
+        model: &Model,
+        wall: usize,
+        material: u16,
+    ) {
+        let params = model.wall_params(wall, material);
+        self.set_wall::<FRICTION>(
+            i,
+            model.walls[wall].normal,
+            [params.effective_modulus, params.damping_ratio],
+            &wall_friction(model, wall, material),
+        );
     }
 
     /// Whether every lane holds the model's one wall and its parameters ([`Self::for_model`]):
