@@ -239,12 +239,13 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
         String::new()
     };
     say!(
-        "am-sim {}: {title}{} particles, {} steps of dt = {:.3e} s ({:.4e} s){from}, {threads} threads, contact kernel {kernel}",
+        "am-sim {}: {title}{} particles, {} steps of dt = {:.3e} s ({:.4e} s){from}, {}, contact kernel {kernel}",
         env!("CARGO_PKG_VERSION"),
         sim.particles.len(),
         model.steps,
         model.dt,
         model.dt * model.steps as f64,
+        thread_count(threads),
     );
     for w in report.warnings.iter().chain(&instability) {
         say!("warning: {w}");
@@ -522,16 +523,26 @@ fn stop(sim: &Simulation, writers: &mut Writers, trip: &GuardTrip, wall: f64) ->
     message
 }
 
+/// "1 thread", "2 threads".
+fn thread_count(threads: usize) -> String {
+    if threads == 1 {
+        "1 thread".to_string()
+    } else {
+        format!("{threads} threads")
+    }
+}
+
 #[allow(clippy::cast_precision_loss)]
 fn print_summary(sim: &Simulation, outcome: &LoopOutcome, threads: usize) {
     let d = sim.diagnostics();
     let (initial, wall) = (&outcome.initial, outcome.wall);
     let particle_steps = sim.particles.len() as f64 * (d.step - initial.step) as f64;
     say!(
-        "done: {} steps, simulated {:.4e} s in {:.3} s wall time ({threads} threads)",
+        "done: {} steps, simulated {:.4e} s in {:.3} s wall time ({})",
         d.step,
         d.time,
-        wall
+        wall,
+        thread_count(threads)
     );
     say!(
         "  speed: {:.3e} particle-steps/s ({:.3e} per thread)",

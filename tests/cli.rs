@@ -23,6 +23,9 @@ fn run_writes_the_series_and_reports_the_bond() {
         &stdout,
         &[
             "10000 steps",
+            // The thread count in words, singular for one.
+            ", 1 thread, contact kernel",
+            "wall time (1 thread)",
             "particle-steps/s",
             "bonds: 1",
             "wall time",
