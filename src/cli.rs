@@ -88,6 +88,11 @@ struct RunArgs {
     /// bitwise the same for any; keep `avx2` where AVX-512 runs slower.
     #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(crate::forces::kernel_builds()))]
     simd: Option<String>,
+    /// Whether the force passes ask the cache for the partners' and the wall particles' lines
+    /// ahead of their contacts: `auto` (default) does on beds above about 56,000 particles,
+    /// whose arrays outgrow the caches. Results are bitwise the same either way.
+    #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(crate::forces::PREFETCH_MODES))]
+    prefetch: Option<String>,
 }
 
 /// How a run ended without error.
@@ -211,6 +216,9 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
         Some(build) => crate::forces::limit_kernel(build).map_err(|e| format!("--simd: {e}"))?,
         None => crate::forces::kernel_build(),
     };
+    if let Some(mode) = &args.prefetch {
+        crate::forces::set_prefetch(mode).map_err(|e| format!("--prefetch: {e}"))?;
+    }
     // Set-up (neighbour list, first forces) already runs on the requested threads.
     let mut sim = match &args.restart {
         Some(file) => pool.install(|| resume(path, file))?,
@@ -239,13 +247,18 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
         String::new()
     };
     say!(
-        "am-sim {}: {title}{} particles, {} steps of dt = {:.3e} s ({:.4e} s){from}, {}, contact kernel {kernel}",
+        "am-sim {}: {title}{} particles, {} steps of dt = {:.3e} s ({:.4e} s){from}, {}, contact kernel {kernel}{}",
         env!("CARGO_PKG_VERSION"),
         sim.particles.len(),
         model.steps,
         model.dt,
         model.dt * model.steps as f64,
         thread_count(threads),
+        if crate::forces::worth_prefetching(sim.particles.len()) {
+            ", prefetching"
+        } else {
+            ""
+        },
     );
     for w in report.warnings.iter().chain(&instability) {
         say!("warning: {w}");

@@ -267,11 +267,7 @@ series_csv = "overlap.csv"
 /// that is no build is refused before anything is written.
 #[test]
 fn simd_caps_the_kernel_without_changing_a_bit_of_the_results() {
-    // The friction pile's first 0.01 s (2000 steps): frictional contacts by the hundred.
-    let text_of_scene = std::fs::read_to_string(scene("friction_pile.toml"))
-        .unwrap()
-        .replace("duration_s = 0.4", "duration_s = 0.01")
-        .replace("every_steps = 2000", "every_steps = 100");
+    let text_of_scene = short_friction_pile();
     let run = |simd: Option<&str>| {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join("pile.toml"), &text_of_scene).unwrap();
@@ -281,22 +277,6 @@ fn simd_caps_the_kernel_without_changing_a_bit_of_the_results() {
         assert!(out.status.success(), "{}", text(&out.stderr));
         let series = std::fs::read_to_string(dir.path().join("friction_pile.csv")).unwrap();
         (text(&out.stdout), series)
-    };
-    let wall_time = am_sim::output::SERIES_COLUMNS
-        .iter()
-        .position(|c| c.name == "wall_time_s")
-        .expect("a wall time column");
-    let without_wall_time = |series: &str| -> Vec<Vec<String>> {
-        series
-            .lines()
-            .map(|line| {
-                line.split(',')
-                    .enumerate()
-                    .filter(|(i, _)| *i != wall_time)
-                    .map(|(_, v)| v.to_owned())
-                    .collect()
-            })
-            .collect()
     };
     let (default_stdout, default_series) = run(None);
     let (baseline_stdout, baseline_series) = run(Some("baseline"));
@@ -320,6 +300,70 @@ fn simd_caps_the_kernel_without_changing_a_bit_of_the_results() {
     assert!(!bad.status.success());
     assert!(
         text(&bad.stderr).contains("avx1024"),
+        "{}",
+        text(&bad.stderr)
+    );
+    assert!(!dir.path().join("friction_pile.csv").exists());
+}
+
+/// The friction pile's first 0.01 s (2000 steps, a row of the series every 100): frictional
+/// pair contacts by the hundred, and the plate's.
+fn short_friction_pile() -> String {
+    std::fs::read_to_string(scene("friction_pile.toml"))
+        .unwrap()
+        .replace("duration_s = 0.4", "duration_s = 0.01")
+        .replace("every_steps = 2000", "every_steps = 100")
+}
+
+/// The rows of a series (CSV) without the wall time, which no two runs share.
+fn without_wall_time(series: &str) -> Vec<Vec<String>> {
+    let wall_time = am_sim::output::SERIES_COLUMNS
+        .iter()
+        .position(|c| c.name == "wall_time_s")
+        .expect("a wall time column");
+    series
+        .lines()
+        .map(|line| {
+            line.split(',')
+                .enumerate()
+                .filter(|(i, _)| *i != wall_time)
+                .map(|(_, v)| v.to_owned())
+                .collect()
+        })
+        .collect()
+}
+
+/// `--prefetch on` asks the cache for lines ahead of the contacts on a bed too small for `auto`
+/// to: the header says so, and the series is bitwise that of `--prefetch off` (a prefetch
+/// changes no value). An unknown mode is refused before anything is written.
+#[test]
+fn prefetching_changes_no_bit_of_the_results() {
+    // The plate's contacts are the particle pass's listed particles.
+    let text_of_scene = short_friction_pile();
+    let run = |mode: &str| {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("pile.toml"), &text_of_scene).unwrap();
+        let out = am_sim(
+            dir.path(),
+            &["pile.toml", "--threads", "2", "--prefetch", mode],
+        );
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let series = std::fs::read_to_string(dir.path().join("friction_pile.csv")).unwrap();
+        (text(&out.stdout), without_wall_time(&series))
+    };
+    let (on_stdout, on_series) = run("on");
+    let (off_stdout, off_series) = run("off");
+    assert!(on_stdout.contains(", prefetching"), "{on_stdout}");
+    assert!(!off_stdout.contains("prefetching"), "{off_stdout}");
+    assert!(on_series.len() > 20, "{on_series:?}");
+    assert_eq!(on_series, off_series);
+
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("pile.toml"), &text_of_scene).unwrap();
+    let bad = am_sim(dir.path(), &["pile.toml", "--prefetch", "sometimes"]);
+    assert!(!bad.status.success());
+    assert!(
+        text(&bad.stderr).contains("sometimes"),
         "{}",
         text(&bad.stderr)
     );

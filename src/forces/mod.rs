@@ -18,6 +18,8 @@
 //! copies, and every sum is formed in an order fixed by the list: the result is bitwise the same
 //! for any thread count.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -140,6 +142,56 @@ impl<'p, 'v> ParticleReads<'p, 'v> {
             material: OpenedReads::open(&particles.material, tokens),
             angular_velocity: omega.map(|omega| OpenedReads::open(omega, tokens)),
         }
+    }
+}
+
+/// When the force passes ask the cache for lines ahead ([`worth_prefetching`]): `auto` (by the
+/// bed's size), `on` or `off`, for the rest of the process (`am-sim --prefetch`). Results do
+/// not change: a prefetch changes no value.
+pub const PREFETCH_MODES: [&str; 3] = ["auto", "on", "off"];
+
+/// The index in [`PREFETCH_MODES`] of the mode the passes follow.
+static PREFETCH_MODE: AtomicUsize = AtomicUsize::new(0);
+
+/// Sets the prefetch mode (one of [`PREFETCH_MODES`]) for the rest of the process.
+///
+/// # Errors
+/// If `mode` names none.
+pub fn set_prefetch(mode: &str) -> Result<(), String> {
+    let index = PREFETCH_MODES
+        .iter()
+        .position(|m| *m == mode)
+        .ok_or_else(|| {
+            format!(
+                "{mode:?} is not a prefetch mode ({})",
+                PREFETCH_MODES.join(", ")
+            )
+        })?;
+    PREFETCH_MODE.store(index, Ordering::Relaxed);
+    Ok(())
+}
+
+/// Whether the force passes ask the cache for a particle's lines before they reach them
+/// ([`crate::scatter::prefetch`]): the near sift for each partner's velocity, mass, force and
+/// spin, which the fill and the write-back read and write next, and the particle pass for the
+/// particles near a wall a few places ahead. On a bed whose arrays the pair pass reaches
+/// (about 150 bytes per particle: position, velocity, spin, force and torque, mass, radius,
+/// lost energy) outgrow the caches those lines are otherwise missed one contact after the
+/// other: the 97.2k LIGGGHTS bed ran 1.19 times faster with them at 1 thread on a shared Zen 4
+/// host, whose 32 MiB third-level cache other machines use too. Where every line is in cache
+/// they cost about 20 instructions per particle-step (+5 % on the 19.2k bed) and gain nothing,
+/// so they are left out below 8 MiB of those arrays (about 56,000 particles)
+/// (docs/performance.md, thirty-fourth round).
+/// `am-sim --prefetch on` or `off` overrides the rule.
+#[must_use]
+pub fn worth_prefetching(particles: usize) -> bool {
+    /// The per-particle bytes of the arrays the pair pass reaches, and what they must exceed.
+    const BYTES_PER_PARTICLE: usize = 150;
+    const FROM_BYTES: usize = 8 << 20;
+    match PREFETCH_MODES[PREFETCH_MODE.load(Ordering::Relaxed)] {
+        "on" => true,
+        "off" => false,
+        _ => particles * BYTES_PER_PARTICLE > FROM_BYTES,
     }
 }
 

@@ -116,6 +116,7 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     parallel: bool,
 ) -> ForceSummary {
     let near_skin = near.skin(list);
+    let prefetch = super::worth_prefetching(particles.len());
     list.for_each_slab_near(
         parallel,
         near,
@@ -138,7 +139,16 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                 let count = slab.near_count();
                 for start in (0..count).step_by(NEAR_PER_ROUND) {
                     let entries = slab.near_pairs(start..(start + NEAR_PER_ROUND).min(count));
-                    sift_near::<BONDS, FRICTION>(model, reads, targets, entries, &mut batch);
+                    // Two builds of the sift: the test of `prefetch` stays out of its loop.
+                    if prefetch {
+                        sift_near::<BONDS, FRICTION, true>(
+                            model, reads, targets, entries, &mut batch,
+                        );
+                    } else {
+                        sift_near::<BONDS, FRICTION, false>(
+                            model, reads, targets, entries, &mut batch,
+                        );
+                    }
                     handle_kept::<BONDS, FRICTION, HEAT>(
                         model, reads, targets, &mut batch, set, summary,
                     );
@@ -168,7 +178,7 @@ const NEAR_PER_ROUND: usize = 256;
 /// entry to entry here, so its position is loaded each time (it is in cache: the entries come
 /// owner by owner).
 #[inline(always)]
-fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
+fn sift_near<'s, const BONDS: bool, const FRICTION: bool, const PREFETCH: bool>(
     model: &Model,
     reads: ParticleReads<'_, 's>,
     targets: &OpenTargets<'_, 's>,
@@ -197,6 +207,9 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool>(
         minimum_image,
     } in entries
     {
+        if PREFETCH {
+            prefetch_partner::<FRICTION>(reads, targets, partner);
+        }
         let periodic = model.periodic.as_ref().filter(|_| minimum_image);
         let separation = pair_separation(
             periodic,
@@ -707,6 +720,27 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         }
     }
     batch.kept_count = 0;
+}
+
+/// Asks for the partners' lines the fill and the write-back of `kept` will read and write,
+/// ahead of them: velocity, mass and, with `FRICTION`, spin; force, lost energy and torque. The
+/// sift read the partners' positions and radii; these lines it did not. With every datum in the
+/// cache a prefetch costs an instruction; on a bed larger than the cache a partner's lines are
+/// otherwise missed one contact after the other (docs/performance.md, thirty-fourth round).
+#[inline(always)]
+fn prefetch_partner<'s, const FRICTION: bool>(
+    reads: ParticleReads<'_, 's>,
+    targets: &OpenTargets<'_, 's>,
+    partner: Member<'s>,
+) {
+    reads.velocity.prefetch(partner);
+    reads.mass.prefetch(partner);
+    targets.force.prefetch(partner);
+    if FRICTION {
+        if let Some(omega) = reads.angular_velocity {
+            omega.prefetch(partner);
+        }
+    }
 }
 
 #[cfg(test)]
