@@ -799,38 +799,6 @@ impl<'v, T: Copy> Opened<'_, 'v, T, PerParticle> {
     }
 }
 
-/// Where an array begins, kept for [`prefetch`] alone: nothing is ever read or written through
-/// it, so it may be shared between threads and held beside a borrow of the same array.
-#[derive(Debug)]
-pub struct PrefetchStart<T>(*const T);
-
-impl<T> Clone for PrefetchStart<T> {
-    fn clone(&self) -> Self {
-        *self
-    }
-}
-
-impl<T> Copy for PrefetchStart<T> {}
-
-// SAFETY: the pointer is only handed to `prefetch`, which reads nothing through it.
-unsafe impl<T> Sync for PrefetchStart<T> {}
-// SAFETY: as above.
-unsafe impl<T> Send for PrefetchStart<T> {}
-
-impl<T> PrefetchStart<T> {
-    /// The start of `values`.
-    #[must_use]
-    pub fn of(values: &[T]) -> Self {
-        Self(values.as_ptr())
-    }
-
-    /// Asks for element `k`'s line ([`prefetch`]).
-    #[inline(always)]
-    pub fn prefetch(self, k: usize) {
-        prefetch(self.0.wrapping_add(k));
-    }
-}
-
 /// A hint to the processor to bring the cache line at `address` into its first-level cache, so
 /// that a read or write of it that comes later does not wait on memory. A prefetch changes no
 /// value the program sees and cannot fault, whatever the address; on a processor other than
@@ -1074,7 +1042,12 @@ enum ChunkParticles<'a> {
 impl<'a> ParticleChunk<'a> {
     /// A window for each of the chunk's particles, in ascending order.
     pub fn windows(&self) -> impl Iterator<Item = Window<'a>> + '_ {
-        self.indices().map(|k| {
+        let (range, listed) = match &self.particles {
+            ChunkParticles::Range(range) => (range.clone(), None),
+            ChunkParticles::Listed(listed) => (0..listed.len(), Some(*listed)),
+        };
+        range.map(move |i| {
+            let k = listed.map_or(i, |listed| listed[i] as usize);
             // SAFETY: no other thread holds a window of particle k: each chunk hands out its
             // own range or the part of a strictly ascending list within it (`for_each_chunk`),
             // each chunk is visited by one thread, and neither the chunk nor its windows can
@@ -1083,16 +1056,6 @@ impl<'a> ParticleChunk<'a> {
             // And k < count < 2^32 (`for_each_chunk`).
             unsafe { Window::particle(k) }
         })
-    }
-
-    /// The indices of the chunk's particles, in ascending order: for asking the cache for
-    /// their lines ([`prefetch`]) before their windows come.
-    pub fn indices(&self) -> impl Iterator<Item = usize> + '_ {
-        let (range, listed) = match &self.particles {
-            ChunkParticles::Range(range) => (range.clone(), None),
-            ChunkParticles::Listed(listed) => (0..listed.len(), Some(*listed)),
-        };
-        range.map(move |i| listed.map_or(i, |listed| listed[i] as usize))
     }
 }
 

@@ -177,7 +177,7 @@ pub fn set_prefetch(mode: &str) -> Result<(), String> {
 /// particles near a wall a few places ahead. On a bed whose arrays the pair pass reaches
 /// (about 150 bytes per particle: position, velocity, spin, force and torque, mass, radius,
 /// lost energy) outgrow the caches those lines are otherwise missed one contact after the
-/// other: the 97.2k LIGGGHTS bed ran 1.19 times faster with them at 1 thread on a shared Zen 4
+/// other: the 97.2k LIGGGHTS bed ran 1.13 times faster with them at 1 thread on a shared Zen 4
 /// host, whose 32 MiB third-level cache other machines use too. Where every line is in cache
 /// they cost about 20 instructions per particle-step (+5 % on the 19.2k bed) and gain nothing,
 /// so they are left out below 8 MiB of those arrays (about 56,000 particles)

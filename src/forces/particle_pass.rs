@@ -17,7 +17,7 @@ use super::{ForceSummary, ParticleReads, PassHeat, plane_overlap};
 use crate::contact::tangential::TangentialSpring;
 use crate::model::{Model, Wall};
 use crate::particles::{Particles, Rotation};
-use crate::scatter::{self, Member, Opened, ParticleChunk, PerParticle, PrefetchStart, Scatter};
+use crate::scatter::{self, Member, Opened, ParticleChunk, PerParticle, Scatter};
 use crate::simd::InstructionSet;
 use crate::thermal::{BoundaryLanes, HeatSums, ThermalModel};
 use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
@@ -42,7 +42,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     let mut dissipated = std::mem::take(&mut particles.dissipated);
     let state = &*particles;
     let count = state.len();
-    let (omega, torque, mut wall_springs, torque_start) = match rotation {
+    let (omega, torque, mut wall_springs) = match rotation {
         Some(r) => {
             let Rotation {
                 angular_velocity,
@@ -50,15 +50,13 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
                 wall_springs,
                 ..
             } = r;
-            let start = PrefetchStart::of(torque);
             (
                 Some(angular_velocity.as_slice()),
                 Some(Scatter::<_, PerParticle>::new(torque)),
                 Some(wall_springs),
-                Some(start),
             )
         }
-        None => (None, None, None, None),
+        None => (None, None, None),
     };
     // Each chunk of particles reads and writes its own wall springs (`wall_history`).
     let mut chunks: Vec<Option<&mut Chunk>> = match wall_springs.as_deref_mut() {
@@ -69,15 +67,6 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     };
     // The listed particles (those near a wall) lie spread over the arrays.
     let prefetch = listed.is_some() && super::worth_prefetching(count);
-    // For the prefetches ahead of the visits (addresses only: nothing is read through them).
-    let ahead_of = AheadOf {
-        position: PrefetchStart::of(&state.position),
-        radius: PrefetchStart::of(&state.radius),
-        velocity: PrefetchStart::of(&state.velocity),
-        force: PrefetchStart::of(&forces),
-        angular_velocity: omega.map(PrefetchStart::of),
-        torque: torque_start,
-    };
     let force_out: Scatter<'_, DVec3, PerParticle> = Scatter::new(&mut forces);
     let lost_out: Scatter<'_, f64, PerParticle> = Scatter::new(&mut dissipated);
     let heat = heat.map(|h| ParticleHeat {
@@ -115,8 +104,8 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         if prefetch {
             // The chunk's listed particles lie spread over the arrays: their lines are asked
             // for at once, before the first is reached.
-            for k in chunk.indices() {
-                ahead_of.prefetch::<ROTATION>(k);
+            for window in chunk.windows() {
+                prefetch_particle(reads, &outputs, window.owner());
             }
         }
         for window in chunk.windows() {
@@ -250,35 +239,26 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     particles.dissipated = dissipated;
     summary
 }
-/// Where the arrays a particle's wall contacts read and write begin, for [`AheadOf::prefetch`].
-#[derive(Clone, Copy)]
-struct AheadOf {
-    position: PrefetchStart<DVec3>,
-    radius: PrefetchStart<f64>,
-    velocity: PrefetchStart<DVec3>,
-    force: PrefetchStart<DVec3>,
-    angular_velocity: Option<PrefetchStart<DVec3>>,
-    torque: Option<PrefetchStart<DVec3>>,
-}
-
-impl AheadOf {
-    /// Asks the cache for particle `k`'s lines. The listed particles (those near a wall) are
-    /// spread over the arrays: on a bed larger than the cache each one's lines were otherwise
-    /// missed one after the other (docs/performance.md, thirty-fourth round).
-    #[inline(always)]
-    fn prefetch<const ROTATION: bool>(&self, k: usize) {
-        self.position.prefetch(k);
-        self.radius.prefetch(k);
-        self.velocity.prefetch(k);
-        self.force.prefetch(k);
-        if ROTATION {
-            if let Some(omega) = self.angular_velocity {
-                omega.prefetch(k);
-            }
-            if let Some(torque) = self.torque {
-                torque.prefetch(k);
-            }
-        }
+/// Asks the cache for the lines of `particle`'s position, radius, velocity and force, and
+/// with rotation its spin and torque: what its wall contacts read and write. The listed
+/// particles (those near a wall) are spread over the arrays: on a bed larger than the cache
+/// each one's lines were otherwise missed one after the other (docs/performance.md,
+/// thirty-fourth round).
+#[inline(always)]
+fn prefetch_particle<'v>(
+    reads: ParticleReads<'_, 'v>,
+    outputs: &OpenOutputs<'_, 'v>,
+    particle: Member<'v>,
+) {
+    reads.position.prefetch(particle);
+    reads.radius.prefetch(particle);
+    reads.velocity.prefetch(particle);
+    outputs.force.prefetch(particle);
+    if let Some(omega) = reads.angular_velocity {
+        omega.prefetch(particle);
+    }
+    if let Some(torque) = &outputs.torque {
+        torque.prefetch(particle);
     }
 }
 
