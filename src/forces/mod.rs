@@ -172,16 +172,19 @@ pub fn set_prefetch(mode: &str) -> Result<(), String> {
 }
 
 /// Whether the force passes ask the cache for a particle's lines before they reach them
-/// ([`crate::scatter::prefetch`]): the near sift for each partner's velocity, mass, force and
-/// spin, which the fill and the write-back read and write next, and the particle pass for the
-/// particles near a wall a few places ahead. On a bed whose arrays the pair pass reaches
-/// (about 150 bytes per particle: position, velocity, spin, force and torque, mass, radius,
-/// lost energy) outgrow the caches those lines are otherwise missed one contact after the
-/// other: the 97.2k LIGGGHTS bed ran 1.13 times faster with them at 1 thread on a shared Zen 4
-/// host, whose 32 MiB third-level cache other machines use too. Where every line is in cache
-/// they cost about 20 instructions per particle-step (+5 % on the 19.2k bed) and gain nothing,
-/// so they are left out below 8 MiB of those arrays (about 56,000 particles)
-/// (docs/performance.md, thirty-fourth round).
+/// ([`crate::scatter::prefetch`]): the near sift for each partner's velocity, mass, force,
+/// lost energy, spin and torque, which the fill and the write-back read and write next, and the
+/// particle pass for the particles near a wall a few places ahead. On a bed whose arrays the
+/// pair pass reaches (about 150 bytes per particle: position, velocity, spin, force and torque,
+/// mass, radius, lost energy) outgrow the caches those lines are otherwise missed one contact
+/// after the other: the 97.2k LIGGGHTS bed ran 1.13 times faster with them at 1 thread on a
+/// shared Zen 4 host, whose 32 MiB third-level cache other machines use too, and 1.12-1.15
+/// times on a Zen 3 host (512 KiB second-level cache), before the lost energy and torque were
+/// added to the set (1.07 times more there). Where every line is in cache they cost
+/// instructions and gain nothing: about 20 per particle-step on the 19.2k bed with the first
+/// set (+5 %), and by the clock 0.94-0.98 there on the Zen 3 with the full set; so they are left
+/// out below 8 MiB of those arrays (about 56,000 particles)
+/// (docs/performance.md, thirty-fourth and thirty-fifth rounds).
 /// `am-sim --prefetch on` or `off` overrides the rule.
 #[must_use]
 pub fn worth_prefetching(particles: usize) -> bool {
