@@ -173,6 +173,13 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
 /// [`KEPT_PER_ROUND`] owners give when all slots are sifted.
 const NEAR_PER_ROUND: usize = 256;
 
+/// How many near entries ahead of its test the sift asks for a partner's position and radius,
+/// where it prefetches ([`super::worth_prefetching`]): on the 97.2k LIGGGHTS bed at 1 thread on
+/// a Zen 3 host, 16 made the step 1.03 times faster (4 alternating pairs, 1.011-1.033), 32 no
+/// faster than 16 (docs/performance.md, thirty-fifth round). The first entries of each round
+/// of [`NEAR_PER_ROUND`] go without: the round's iterator does not reach into the next.
+const SIFT_AHEAD: usize = 16;
+
 /// Appends the near-list entries that need work to the batch's kept slots, as [`sift`] does
 /// for a window's slots: without a branch on whether a pair touches. The owner changes from
 /// entry to entry here, so its position is loaded each time (it is in cache: the entries come
@@ -200,6 +207,8 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool, const PREFETCH: bool>(
     // The slice's pointer and length are held in registers for the loop (through the vector
     // they were loaded again for every entry).
     let kept = &mut batch.kept[..room];
+    // With `PREFETCH`, the entries `SIFT_AHEAD` places on, whose partners' lines are asked for.
+    let mut ahead = entries.clone().skip(SIFT_AHEAD);
     for NearTokens {
         owner,
         slot,
@@ -209,6 +218,10 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool, const PREFETCH: bool>(
     {
         if PREFETCH {
             prefetch_partner::<FRICTION>(reads, targets, partner);
+            if let Some(next) = ahead.next() {
+                reads.position.prefetch(next.partner);
+                reads.radius.prefetch(next.partner);
+            }
         }
         let periodic = model.periodic.as_ref().filter(|_| minimum_image);
         let separation = pair_separation(
