@@ -239,6 +239,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     particles.dissipated = dissipated;
     summary
 }
+
 /// Asks the cache for the lines of `particle`'s position, radius, velocity and force, and
 /// with rotation its spin and torque: what its wall contacts read and write. The listed
 /// particles (those near a wall) are spread over the arrays: on a bed larger than the cache
