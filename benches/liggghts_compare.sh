@@ -33,6 +33,13 @@ cargo build --release --quiet
 AM_SIM=$(realpath target/release/am-sim)
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
+# The host first: the ratio moves with it (on a Zen 3 without AVX-512 am-sim's contact laws run
+# in AVX2, 1.6 times their AVX-512 time: docs/performance.md, thirty-fifth round), so a reading
+# names the processor and its caches; each am-sim line below names the laws' build it ran.
+cpu() { awk -F': ' -v key="$1" '$1 ~ "^"key"[[:space:]]*$" {print $2; exit}' /proc/cpuinfo; }
+cache() { lscpu 2>/dev/null | awk -F': *' -v key="$1" '$1 == key {print $2; exit}'; }
+echo "host: $(cpu "model name"), family $(cpu "cpu family") model $(cpu model), $(nproc) cores," \
+  "L2 $(cache "L2 cache"), L3 $(cache "L3 cache")"
 cp "$BENCH"/in.bench "$WORK"/
 read -r -a HEATS <<< "${HEATS:-0 1}"
 read -r -a SIZES <<< "${SIZES:-20k}"
@@ -54,14 +61,16 @@ for rep in $(seq 1 "$REPS"); do
       for t in "${THREADS[@]}"; do
         run_liggghts() {
           (cd "$WORK" && mpirun --allow-run-as-root -np "$t" liggghts -in in.bench -var tag "$size" \
-              -var heat "$heat" -var nsteps "$STEPS" -screen none -log lig.log)
+              -var heat "$heat" -var nsteps "$STEPS" -screen none -log lig.log > lig.out)
           loop=$(grep "Loop time" "$WORK"/lig.log | tail -1 | awk '{print $4}')
           echo "liggghts $size $heat $t $(python3 -c "print($N*$STEPS/$loop/$t)")" >> "$results"
         }
         run_am_sim() {
-          speed=$(cd "$WORK" && "$AM_SIM" "am_sim_${size}_heat$heat.toml" --threads "$t" --quiet \
-              --overwrite | awk '/particle-steps\/s/{print $2}')
-          echo "am-sim $size $heat $t $(python3 -c "print($speed/$t)")" >> "$results"
+          (cd "$WORK" && "$AM_SIM" "am_sim_${size}_heat$heat.toml" --threads "$t" --quiet \
+              --overwrite > am.log)
+          speed=$(awk '/particle-steps\/s/{print $2}' "$WORK"/am.log)
+          kernel=$(grep -o "contact kernel [a-z0-9]*" "$WORK"/am.log | head -1 | awk '{print $3}')
+          echo "am-sim $size $heat $t $(python3 -c "print($speed/$t)") $kernel" >> "$results"
         }
         # Who goes first alternates from repetition to repetition, so that neither program
         # always runs right after the other (on this shared host 2-thread speeds scatter by
@@ -76,7 +85,7 @@ python3 - "$results" <<'PY'
 import statistics, sys, collections
 runs = collections.defaultdict(list)
 for line in open(sys.argv[1]):
-    prog, size, heat, threads, per_core = line.split()
+    prog, size, heat, threads, per_core = line.split()[:5]  # am-sim's lines end with its laws' build
     runs[(prog, size, int(heat), int(threads))].append(float(per_core))
 median = lambda key: statistics.median(runs[key])
 print("\nparticle-steps per second per core (medians of %d runs)" % len(next(iter(runs.values()))))
