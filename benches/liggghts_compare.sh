@@ -69,7 +69,7 @@ for rep in $(seq 1 "$REPS"); do
           (cd "$WORK" && "$AM_SIM" "am_sim_${size}_heat$heat.toml" --threads "$t" --quiet \
               --overwrite > am.log)
           speed=$(awk '/particle-steps\/s/{print $2}' "$WORK"/am.log)
-          kernel=$(grep -o "contact kernel [a-z0-9]*" "$WORK"/am.log | head -1 | awk '{print $3}')
+          kernel=$(grep -m1 -o "contact kernel [a-z0-9]*" "$WORK"/am.log | cut -d' ' -f3)
           echo "am-sim $size $heat $t $(python3 -c "print($speed/$t)") $kernel" >> "$results"
         }
         # Who goes first alternates from repetition to repetition, so that neither program
