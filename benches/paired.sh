@@ -33,6 +33,9 @@ if [ "$(nproc)" -lt 2 ]; then
 fi
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
+# Each run in a folder of its own: a scene's output files are named relative to the working
+# directory, and two runs writing the same file at once would refuse to start or clash.
+mkdir "$WORK/a" "$WORK/b"
 
 speed() { grep -o "speed: [0-9.e+-]*" "$1" | awk '{print $2}'; }
 # The summary without the lines that carry timings.
@@ -44,9 +47,12 @@ for pair in $(seq "$PAIRS"); do
   same=yes
   for placement in "0 1" "1 0"; do
     read -r core_a core_b <<< "$placement"
-    taskset -c "$core_a" "$A" "$SCENE_A" --threads 1 > "$WORK/a.log" 2>&1 &
+    (cd "$WORK/a" && taskset -c "$core_a" "$A" "$SCENE_A" --threads 1 --overwrite) \
+      > "$WORK/a.log" 2>&1 &
     run_a=$!
-    taskset -c "$core_b" "$B" "$SCENE_B" --threads 1 > "$WORK/b.log" 2>&1 || {
+    (cd "$WORK/b" && taskset -c "$core_b" "$B" "$SCENE_B" --threads 1 --overwrite) \
+      > "$WORK/b.log" 2>&1 || {
+      kill "$run_a" 2> /dev/null || true
       echo "paired.sh: B failed:" >&2; tail -5 "$WORK/b.log" >&2; exit 1; }
     wait "$run_a" || { echo "paired.sh: A failed:" >&2; tail -5 "$WORK/a.log" >&2; exit 1; }
     speeds+=("$(speed "$WORK/a.log")" "$(speed "$WORK/b.log")")
