@@ -23,7 +23,10 @@ pub(crate) type Lane<T> = [T; LANES];
 
 /// A loop whose body [`dispatch`] compiles for each build (the pair and wall kernels of
 /// `forces`, the kicks and drift of `integrate`): its `run` must be `#[inline(always)]`, so that
-/// it is compiled into the build's function, with its instructions.
+/// it is compiled into the build's function, with its instructions. So must every function of
+/// am-sim's it reaches (the contact laws of `contact`, for one): one the compiler leaves out of
+/// line is built for the baseline and called lane by lane, and the vector is lost.
+/// `scripts/check_kernels.py`, run by CI, reads the release binary's disassembly for such calls.
 pub(crate) trait Kernel {
     /// The loop.
     fn run(self);

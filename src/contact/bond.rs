@@ -33,6 +33,7 @@ pub struct BondParams {
 
 impl BondParams {
     /// Adhesion force magnitude (attractive) `k_adh δ^α_adh` \[N\], the second term of paper eq. 15 (M.12).
+    #[inline(always)]
     #[must_use]
     pub fn adhesion_force(&self, overlap: f64) -> f64 {
         if overlap <= 0.0 {
@@ -46,6 +47,7 @@ impl BondParams {
     /// ```text
     /// F_el = (4/3) E* √r* δ^{3/2} − k_adh δ^α_adh
     /// ```
+    #[inline(always)]
     #[must_use]
     pub fn elastic_force(
         &self,
@@ -65,6 +67,7 @@ impl BondParams {
     /// ```
     ///
     /// Negative for `δ < δ_crit`. The α_adh = 0 case has no second term (it would be `0 · δ^{−1}`).
+    #[inline(always)]
     #[must_use]
     pub fn stiffness(&self, effective_modulus: f64, effective_radius: f64, overlap: f64) -> f64 {
         let adhesion = if self.adhesion_exponent == 0.0 || self.adhesion_stiffness == 0.0 {
@@ -79,6 +82,7 @@ impl BondParams {
 
     /// Energy stored in the bonded spring relative to δ = 0 \[J\] (M.15):
     /// `U = (8/15) E* √r* δ^{5/2} − k_adh δ^{α+1}/(α+1)`.
+    #[inline(always)]
     #[must_use]
     pub fn elastic_energy(
         &self,
@@ -99,6 +103,7 @@ impl BondParams {
     /// ```text
     /// δ_eq = (k_adh / ((4/3) E* √r*))^{1/(3/2 − α_adh)}
     /// ```
+    #[inline(always)]
     #[must_use]
     pub fn equilibrium_overlap(&self, effective_modulus: f64, effective_radius: f64) -> f64 {
         (self.adhesion_stiffness / (4.0 / 3.0 * effective_modulus * effective_radius.sqrt()))
@@ -112,6 +117,7 @@ impl BondParams {
     /// ```
     ///
     /// For α_adh = 1, `δ_crit = (2/3)² δ_eq = (4/9) δ_eq`; for α_adh = 0 or k_adh = 0 it is 0.
+    #[inline(always)]
     #[must_use]
     pub fn critical_overlap(&self, effective_modulus: f64, effective_radius: f64) -> f64 {
         (self.adhesion_exponent * self.adhesion_stiffness
@@ -217,6 +223,7 @@ pub fn adhesion_stiffness_for_equilibrium(
 
 /// Formation rule, paper eq. 25 (M.21): an unbonded pair bonds when the bond criterion holds and
 /// the overlap reached the critical overlap.
+#[inline(always)]
 #[must_use]
 pub fn forms(criterion_met: bool, overlap: f64, critical_overlap: f64) -> bool {
     criterion_met && holds(overlap, critical_overlap)
@@ -224,6 +231,7 @@ pub fn forms(criterion_met: bool, overlap: f64, critical_overlap: f64) -> bool {
 
 /// Persistence rule (M.22): a bonded pair stays bonded while `δ ≥ δ_crit` and `δ > 0`; below, it
 /// breaks (see the module documentation for why δ_crit is the breaking point).
+#[inline(always)]
 #[must_use]
 pub fn holds(overlap: f64, critical_overlap: f64) -> bool {
     overlap > 0.0 && overlap >= critical_overlap

@@ -16,6 +16,7 @@ use super::hertz;
 /// (it would give N·s/m^{9/8}); the form above is the one that matches eq. 23 and the Tsuji-type
 /// damping used by LIGGGHTS and LAMMPS, and it makes the restitution coefficient independent of the
 /// impact speed (tested in `tests/hertz_impact.rs`).
+#[inline(always)]
 #[must_use]
 pub fn contact_coefficient(
     damping_ratio: f64,
@@ -36,6 +37,7 @@ pub fn contact_coefficient(
 /// `k*` (paper eq. 24) is negative below δ_crit, where the bond has no restoring stiffness; the
 /// square root is guarded by taking `max(k*, 0)`, so the damper simply switches off there instead
 /// of producing NaN.
+#[inline(always)]
 #[must_use]
 pub fn bond_coefficient(damping_ratio: f64, effective_mass: f64, bond_stiffness: f64) -> f64 {
     2.0 * damping_ratio * (effective_mass * bond_stiffness.max(0.0)).sqrt()

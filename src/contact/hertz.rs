@@ -8,6 +8,7 @@
 /// Effective radius of two spheres, paper eq. 12 (M.1): `r* = r_i r_j / (r_i + r_j)` \[m\].
 ///
 /// For a sphere against a plane use `r* = r_i` directly (the limit `r_j → ∞`).
+#[inline(always)]
 #[must_use]
 pub fn effective_radius(radius_i: f64, radius_j: f64) -> f64 {
     radius_i * radius_j / (radius_i + radius_j)
@@ -16,6 +17,7 @@ pub fn effective_radius(radius_i: f64, radius_j: f64) -> f64 {
 /// Effective (reduced) mass, paper eq. 11 (M.2): `m* = m_i m_j / (m_i + m_j)` \[kg\].
 ///
 /// For a sphere against a fixed plane use `m* = m_i` (the limit `m_j → ∞`).
+#[inline(always)]
 #[must_use]
 pub fn effective_mass(mass_i: f64, mass_j: f64) -> f64 {
     mass_i * mass_j / (mass_i + mass_j)
@@ -37,6 +39,7 @@ pub fn effective_modulus(youngs_i: f64, poisson_i: f64, youngs_j: f64, poisson_j
 /// ```text
 /// F_hertz = (4/3) E* √r* δ^{3/2}      [N],   0 for δ ≤ 0
 /// ```
+#[inline(always)]
 #[must_use]
 pub fn elastic_force(effective_modulus: f64, effective_radius: f64, overlap: f64) -> f64 {
     if overlap <= 0.0 {
@@ -50,6 +53,7 @@ pub fn elastic_force(effective_modulus: f64, effective_radius: f64, overlap: f64
 /// ```text
 /// k_hertz(δ) = dF_hertz/dδ = 2 E* √(r* δ)      [N/m],   0 for δ ≤ 0
 /// ```
+#[inline(always)]
 #[must_use]
 pub fn stiffness(effective_modulus: f64, effective_radius: f64, overlap: f64) -> f64 {
     if overlap <= 0.0 {
@@ -60,6 +64,7 @@ pub fn stiffness(effective_modulus: f64, effective_radius: f64, overlap: f64) ->
 
 /// Elastic energy stored in a Hertz contact (M.6): `U = (8/15) E* √r* δ^{5/2}` \[J\], the integral
 /// of [`elastic_force`] over δ.
+#[inline(always)]
 #[must_use]
 pub fn elastic_energy(effective_modulus: f64, effective_radius: f64, overlap: f64) -> f64 {
     if overlap <= 0.0 {

@@ -8,6 +8,14 @@
 //! * A scalar normal force `F` is **positive when repulsive**; the force on i is `−F n_ij` and the
 //!   force on j is `+F n_ij`. The paper's "`f_i·n_ij > 0`" (attractive) is `F < 0` here.
 //! * SI units everywhere.
+//!
+//! # Inlining
+//! The laws the vector kernels run (`forces/lanes.rs`, `forces/wall_lanes.rs`) are
+//! `#[inline(always)]`: a law the compiler leaves out of line is built for the baseline and
+//! called lane by lane from the AVX2 and AVX-512 builds (`simd::Kernel`). `contact::normal_force`
+//! was, from every kernel with bond laws; a throw-away build with three laws out of line ran the
+//! LIGGGHTS bed's step at 0.30 times its speed (docs/performance.md, thirty-eighth round). CI's
+//! `scripts/check_kernels.py` finds such calls in the release binary.
 
 pub mod bond;
 pub mod damping;
@@ -103,6 +111,7 @@ pub struct NormalForce {
 ///
 /// State changes follow [`bond::forms`] and [`bond::holds`]: formation when the criterion holds
 /// and `δ ≥ δ_crit`; a bond stays while `δ ≥ δ_crit` whatever the criterion; it breaks below.
+#[inline(always)]
 #[must_use]
 pub fn normal_force(
     params: &NormalParams,
@@ -156,6 +165,7 @@ pub fn hertz_force(effective_modulus: f64, damping_ratio: f64, kin: &PairKinemat
 }
 
 /// [`hertz_force`] and its elastic part `(total, elastic)` \[N\].
+#[inline(always)]
 #[must_use]
 pub fn hertz_parts(effective_modulus: f64, damping_ratio: f64, kin: &PairKinematics) -> (f64, f64) {
     let elastic = hertz::elastic_force(effective_modulus, kin.effective_radius, kin.overlap);
@@ -178,6 +188,7 @@ pub fn bonded_force(bond: &BondParams, effective_modulus: f64, kin: &PairKinemat
 }
 
 /// [`bonded_force`] and its elastic part `(total, elastic)` \[N\].
+#[inline(always)]
 #[must_use]
 pub fn bonded_parts(bond: &BondParams, effective_modulus: f64, kin: &PairKinematics) -> (f64, f64) {
     let (r_star, overlap) = (kin.effective_radius, kin.overlap);

@@ -23,6 +23,7 @@ use glam::DVec3;
 /// exactly to zero in one step (velocity Verlet applies a torque for one dt between two
 /// evaluations). Below that speed the torque is viscous (∝ ω_rel), so its power −M_r·ω_rel stays
 /// ≥ 0: it never adds energy, and a pair at rest relative to each other stays at rest.
+#[inline(always)]
 #[must_use]
 pub fn rolling_torque(
     coefficient: f64,
@@ -45,6 +46,7 @@ pub fn rolling_torque(
 }
 
 /// Moment of inertia of a solid sphere (M.62): `I = (2/5) m r²` [kg·m²].
+#[inline(always)]
 #[must_use]
 pub fn sphere_inertia(mass: f64, radius: f64) -> f64 {
     0.4 * mass * radius * radius

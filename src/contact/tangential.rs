@@ -70,6 +70,7 @@ pub fn sticking_time_factor(effective_shear_modulus: f64, effective_modulus: f64
 }
 
 /// Mindlin tangential stiffness (M.57): `k_t = 8 G* a`, `a = √(r* δ)` [N/m]; 0 for δ ≤ 0.
+#[inline(always)]
 #[must_use]
 pub fn stiffness(effective_shear_modulus: f64, effective_radius: f64, overlap: f64) -> f64 {
     if overlap <= 0.0 {
@@ -81,6 +82,7 @@ pub fn stiffness(effective_shear_modulus: f64, effective_radius: f64, overlap: f
 /// Tangential damping coefficient (M.57): `γ_t = 2 ξ √(m* k_t)` [N·s/m], the critical-damping
 /// form of M.10 with the same damping ratio ξ as the normal law. With ξ from a restitution
 /// coefficient (M.55) this is LIGGGHTS' `γ_t = 2 √(5/6) (−β) √(S_t m*)`, `S_t = k_t`.
+#[inline(always)]
 #[must_use]
 pub fn damping_coefficient(damping_ratio: f64, effective_mass: f64, stiffness: f64) -> f64 {
     2.0 * damping_ratio * (effective_mass * stiffness.max(0.0)).sqrt()
@@ -96,6 +98,7 @@ pub fn damping_coefficient(damping_ratio: f64, effective_mass: f64, stiffness: f
 /// (and its force) for no physical reason, so the length is restored, as LIGGGHTS and LAMMPS
 /// (`rotate_rescale_vec`) do. A history parallel to `n` (a pair turned by 90° within one step)
 /// has no tangential direction left and is reset.
+#[inline(always)]
 #[must_use]
 pub fn rotate_history(history: DVec3, normal: DVec3) -> DVec3 {
     let length_squared = history.length_squared();
@@ -142,6 +145,7 @@ pub struct TangentialForce {
 /// (a sphere set down sliding, or the first step of a contact of a fast pair), whose spring has
 /// had no time to load: there LIGGGHTS' damping force alone, `γ_t |v_t|`, can exceed Coulomb's
 /// limit many times over.
+#[inline(always)]
 #[must_use]
 pub fn tangential_force(
     history: DVec3,
@@ -187,6 +191,7 @@ pub fn tangential_force(
 }
 
 /// Elastic energy of the tangential spring (M.63): `U_t = ½ k_t |ξ|²` \[J\].
+#[inline(always)]
 #[must_use]
 pub fn spring_energy(stiffness: f64, history: DVec3) -> f64 {
     0.5 * stiffness * history.length_squared()

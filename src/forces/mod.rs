@@ -201,7 +201,7 @@ pub fn worth_prefetching(particles: usize) -> bool {
 /// `separation / distance`, the unit normal from a to b. Coincident centres have no direction;
 /// any unit vector keeps the force finite, and the blown-up overlap is reported by the run's
 /// overlap guard.
-#[inline]
+#[inline(always)]
 fn unit_normal(separation: DVec3, distance: f64) -> DVec3 {
     if distance > 0.0 {
         separation * (1.0 / distance)
