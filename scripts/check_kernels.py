@@ -14,6 +14,7 @@ crate. What may stay out of line is the C library's (`pow`, `memset`: symbols wi
 cold panics of a failed check (`core::panicking`, a slice index out of bounds).
 
 usage: scripts/check_kernels.py [BINARY]   (default: target/release/am-sim; needs objdump)
+       scripts/check_kernels.py --self-test   (the reading of objdump's lines, on a sample)
 """
 
 import re
@@ -38,17 +39,9 @@ BRANCH = re.compile(r"^\s*[0-9a-f]+:\t(call|jmp|j[a-z]{1,3})\s+(\S+)")
 TARGET = re.compile(r"\s<(.*)>\s*$")
 
 
-def main() -> int:
-    binary = Path(sys.argv[1] if len(sys.argv) > 1 else "target/release/am-sim")
-    if not binary.is_file():
-        print(f"check_kernels: {binary}: no such binary (cargo build --release first)", file=sys.stderr)
-        return 1
-    disassembly = subprocess.run(
-        ["objdump", "-d", "-C", "--no-show-raw-insn", str(binary)],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout
+def scan(disassembly: str) -> tuple[int, dict[str, set[str]]]:
+    """The number of vector builds in `disassembly` (objdump -d -C) and, per build, what it
+    calls or jumps to outside itself that is not allowed."""
     kernels = 0
     offending = defaultdict(set)
     current = None
@@ -78,6 +71,63 @@ def main() -> int:
         if any(rule.search(target) for rule in ALLOWED):
             continue
         offending[current].add(target)
+    return kernels, dict(offending)
+
+
+# objdump's lines as they come for each case the check must tell apart (release names, which
+# carry no generic arguments), and what `scan` must find in them.
+SAMPLE = """\
+0000000000243e70 <am_sim::contact::normal_force>:
+  243e70:\tpush   %rbp
+  243e71:\tcall   243f00 <am_sim::contact::hertz_parts>
+0000000000258ce0 <am_sim::simd::loop_avx512>:
+  258ce0:\tvmovupd (%rdi),%zmm0
+  258ce6:\tjne    258d10 <am_sim::simd::loop_avx512+0x30>
+  258cf0:\tcall   243e70 <am_sim::contact::normal_force>
+  258cf5:\tcall   *0x5ff77f(%rip)        # 80eb80 <pow@GLIBC_2.29>
+  258cfb:\tjmp    *%rdx
+  258d00:\tcall   2a0000 <core::panicking::panic_bounds_check>
+  258d05:\tjmp    2a0100 <<glam::f64::dvec3::DVec3 as core::ops::arith::Add>::add>
+0000000000259000 <am_sim::simd::loop_avx2>:
+  259000:\tcall   *%rax
+  259002:\tjb     259000 <am_sim::simd::loop_avx2>
+  259004:\tret
+0000000000259100 <am_sim::simd::dispatch>:
+  259100:\tcall   258ce0 <am_sim::simd::loop_avx512>
+"""
+
+
+def self_test() -> int:
+    kernels, offending = scan(SAMPLE)
+    expected = {
+        "am_sim::simd::loop_avx512": {
+            "am_sim::contact::normal_force",
+            "<glam::f64::dvec3::DVec3 as core::ops::arith::Add>::add",
+        },
+        "am_sim::simd::loop_avx2": {"an indirect call (*%rax)"},
+    }
+    if (kernels, offending) != (2, expected):
+        print(f"check_kernels --self-test: found {kernels} builds, {offending}", file=sys.stderr)
+        print(f"check_kernels --self-test: expected 2 builds, {expected}", file=sys.stderr)
+        return 1
+    print("check_kernels --self-test: passed")
+    return 0
+
+
+def main() -> int:
+    if sys.argv[1:] == ["--self-test"]:
+        return self_test()
+    binary = Path(sys.argv[1] if len(sys.argv) > 1 else "target/release/am-sim")
+    if not binary.is_file():
+        print(f"check_kernels: {binary}: no such binary (cargo build --release first)", file=sys.stderr)
+        return 1
+    disassembly = subprocess.run(
+        ["objdump", "-d", "-C", "--no-show-raw-insn", str(binary)],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    kernels, offending = scan(disassembly)
     if kernels == 0:
         print(f"check_kernels: no vector build (am_sim::simd::loop_avx*) found in {binary}", file=sys.stderr)
         return 1
