@@ -37,19 +37,13 @@ CARGO_PROFILE_RELEASE_DEBUG=line-tables-only RUSTFLAGS="-C symbol-mangling-versi
 AM_SIM=$(realpath target/hot/release/am-sim)
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
-scene_dir=$(realpath "$(dirname "$SCENE")")
-dt=$(sed -n 's/^dt_s *= *\([0-9.eE+-]*\).*/\1/p' "$SCENE" | head -1)
-[ -n "$dt" ] || { echo "$SCENE: no simulation.dt_s found" >&2; exit 1; }
-duration=$(python3 -c "print($STEPS * $dt)")
-sed -e "s|file = \"data/|file = \"$scene_dir/data/|" \
-    -e "s|^duration_s *=.*|duration_s = $duration|" "$SCENE" > "$WORK/scene.toml"
-# As in instructions.sh: glibc's `rep stosb` and `rep movsb` would count once per byte.
-REP_OFF=glibc.cpu.x86_rep_stosb_threshold=1000000000000:glibc.cpu.x86_rep_movsb_threshold=1000000000000
+# REP_OFF (glibc's string instructions out of valgrind's way), scene_for_steps, particles_of.
+source benches/valgrind_scene.sh
+scene_for_steps "$SCENE" "$STEPS" "$WORK/scene.toml"
 (cd "$WORK" && GLIBC_TUNABLES=$REP_OFF valgrind --tool=callgrind --dump-instr=yes \
     --callgrind-out-file="$WORK/callgrind.out" "$AM_SIM" scene.toml --threads 1 --quiet \
     --simd avx2 > "$WORK/run.txt" 2> "$WORK/valgrind.txt")
-particles=$(sed -n 's/.* — \([0-9]*\) particles,.*/\1/p' "$WORK/run.txt" | head -1)
-[ -n "$particles" ] || { echo "could not read the particle count from am-sim's header" >&2; exit 1; }
+particles=$(particles_of "$WORK/run.txt")
 echo "$SCENE, $STEPS steps of $particles particles: counts per particle-step"
 python3 benches/hot_instructions.py "$WORK/callgrind.out" "$AM_SIM" "$PATTERN" \
   --unit "$((STEPS * particles))" "$@"

@@ -30,27 +30,15 @@ RUSTFLAGS="-C symbol-mangling-version=v0" cargo build --release --quiet --target
 AM_SIM=$(realpath target/instructions/release/am-sim)
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
-scene_dir=$(realpath "$(dirname "$SCENE")")
-dt=$(sed -n 's/^dt_s *= *\([0-9.eE+-]*\).*/\1/p' "$SCENE" | head -1)
-[ -n "$dt" ] || { echo "$SCENE: no simulation.dt_s found" >&2; exit 1; }
-
-# glibc clears and copies large blocks with `rep stosb` and `rep movsb`, which valgrind counts once
-# per byte: the forces' and torques' zeroing alone read as 33 "instructions" per particle-step,
-# 7 % of the table, where the vector loop that replaces it takes about 2.5. The tunables move
-# the threshold for those string instructions out of reach for the measured run only, so the
-# memset row counts instructions like every other row (the timed runs keep glibc's choice).
-REP_OFF=glibc.cpu.x86_rep_stosb_threshold=1000000000000:glibc.cpu.x86_rep_movsb_threshold=1000000000000
+# REP_OFF (glibc's string instructions out of valgrind's way), scene_for_steps, particles_of.
+source benches/valgrind_scene.sh
 for n in "$STEPS" $((2 * STEPS)); do
-  duration=$(python3 -c "print($n * $dt)")
-  # The scene's data files resolve from its own folder; the duration gives n steps.
-  sed -e "s|file = \"data/|file = \"$scene_dir/data/|" \
-      -e "s|^duration_s *=.*|duration_s = $duration|" "$SCENE" > "$WORK/scene_$n.toml"
+  scene_for_steps "$SCENE" "$n" "$WORK/scene_$n.toml"
   (cd "$WORK" && GLIBC_TUNABLES=$REP_OFF valgrind --tool=cachegrind --cache-sim=no --cachegrind-out-file="$WORK/cg_$n" \
       "$AM_SIM" "scene_$n.toml" --threads 1 --quiet --simd avx2 > "$WORK/run_$n.txt" 2> "$WORK/valgrind_$n.txt")
   cg_annotate --auto=no "$WORK/cg_$n" > "$WORK/annotated_$n.txt"
 done
-particles=$(sed -n 's/.* — \([0-9]*\) particles,.*/\1/p' "$WORK/run_$STEPS.txt" | head -1)
-[ -n "$particles" ] || { echo "could not read the particle count from am-sim's header" >&2; exit 1; }
+particles=$(particles_of "$WORK/run_$STEPS.txt")
 
 python3 - "$WORK/annotated_$STEPS.txt" "$WORK/annotated_$((2 * STEPS)).txt" "$STEPS" "$particles" "$SCENE" <<'EOF'
 import re, sys
