@@ -41,9 +41,9 @@ def parse_profile(text: str, binary_name: str) -> Counter:
     `calls=` line with the call's inclusive cost, which is not the caller's own and is skipped.
     """
     kinds = ["line"]
+    previous = [0]
     objects: dict[str, str] = {}
     in_binary = False
-    previous: list[int] = []
     skip_call_cost = False
     counts: Counter = Counter()
     for raw in text.splitlines():
@@ -72,14 +72,12 @@ def parse_profile(text: str, binary_name: str) -> Counter:
         if line.startswith("calls="):
             skip_call_cost = True
             continue
-        if "=" in line.split()[0] or ":" in line.split()[0]:
-            # fn=, fl=, fi=, fe=, cfn=, cob=, jump=, jcnd=, events:, summary: ...
-            continue
         fields = line.split()
+        if "=" in fields[0] or ":" in fields[0]:
+            # fn=, fl=, fi=, fe=, cfn=, jump=, jcnd=, events:, summary: ...
+            continue
         if len(fields) < len(kinds) or not all(POSITION.match(f) for f in fields[: len(kinds)]):
             continue
-        if not previous:
-            previous = [0] * len(kinds)
         position = []
         for field, last in zip(fields[: len(kinds)], previous):
             if field == "*":
@@ -124,20 +122,19 @@ INSTRUCTION = re.compile(r"^\s*([0-9a-f]+):\t(.*)$")
 def annotate(disassembly: str, counts: Counter, unit: float, floor: float, lines: bool) -> list[str]:
     """Lines of `disassembly` (objdump -d, with -l for source lines) with each instruction's count
     over `unit`; instructions run less than `floor` times the most run one are left out."""
-    instructions = [
-        (int(m.group(1), 16), m.group(2)) for m in map(INSTRUCTION.match, disassembly.splitlines()) if m
-    ]
-    top = max((counts.get(address, 0) for address, _ in instructions), default=0)
-    out = []
+    # (source line, address, instruction) of each instruction, read once.
+    instructions = []
     source = None
-    shown_source = None
     for raw in disassembly.splitlines():
         match = INSTRUCTION.match(raw)
-        if not match:
-            if lines and re.match(r"^/.*:\d+", raw):
-                source = short_path(raw.split(" (discriminator")[0])
-            continue
-        address, text = int(match.group(1), 16), match.group(2)
+        if match:
+            instructions.append((source, int(match.group(1), 16), match.group(2)))
+        elif lines and re.match(r"^/.*:\d+", raw):
+            source = short_path(raw.split(" (discriminator")[0])
+    top = max((counts.get(address, 0) for _, address, _ in instructions), default=0)
+    out = []
+    shown_source = None
+    for source, address, text in instructions:
         count = counts.get(address, 0)
         if top == 0 or count < floor * top or count == 0:
             continue
@@ -157,14 +154,13 @@ def report(profile: str, binary: str, pattern: str, unit: float, floor: float, l
         sys.exit(f"{profile}: no instruction counts for {binary} (was it taken with --dump-instr=yes?)")
     chosen = []
     for start, size, name in functions(binary, pattern):
-        total = sum(c for a, c in counts.items() if start <= a < start + size)
-        if total:
-            chosen.append((total, start, size, name))
+        inside = [c for a, c in counts.items() if start <= a < start + size]
+        if sum(inside):
+            chosen.append((sum(inside), max(inside), start, size, name))
     if not chosen:
         sys.exit(f"no executed function of {binary} matches {pattern!r}")
     everything = sum(counts.values())
-    for total, start, size, name in sorted(chosen, reverse=True):
-        top = max(c for a, c in counts.items() if start <= a < start + size)
+    for total, top, start, size, name in sorted(chosen, reverse=True):
         print(f"== {name}")
         print(f"   {total / unit:.1f} instructions per unit ({100 * total / everything:.1f} % of the binary's);"
               f" its most run instruction {top / unit:.3f} times per unit, {total / top:.1f} instructions per such run")
