@@ -1,5 +1,6 @@
 # Sourced by benches/instructions.sh and benches/hot_instructions.sh (not run on its own): what
-# both need to count a scene's instructions under valgrind.
+# both need to count a scene's instructions under valgrind. benches/detection_bound.sh uses its
+# scene_for_steps too.
 
 # glibc clears and copies large blocks with `rep stosb` and `rep movsb`, which valgrind counts once
 # per byte: the forces' and torques' zeroing alone read as 33 "instructions" per particle-step,
