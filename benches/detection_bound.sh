@@ -35,5 +35,10 @@ blocks = re.split(r'(?m)^(?=\[)', s)
 s = ''.join(b for b in blocks if not b.startswith('[output]'))
 open(path, 'w').write(s + f'\n[output]\nfile = "frames.h5"\nevery_steps = {every}\n')
 PY
-(cd "$WORK" && "$AM_SIM" scene.toml --quiet --threads 2 | sed -n '/^done:/,/^  contacts:/p')
+(cd "$WORK" && "$AM_SIM" scene.toml --quiet --threads 2) > "$WORK/run.txt"
+sed -n '/^done:/,/^  contacts:/p' "$WORK/run.txt"
+builds=$(sed -n 's/.*neighbour-list builds: \([0-9]*\).*/\1/p' "$WORK/run.txt")
+if [ "${builds:-1}" -gt 1 ]; then
+  echo "note: the list was built $builds times in the window; the counts take the first frame's candidates for all of it (an approximation)"
+fi
 python3 benches/detection_bound.py "$WORK/frames.h5" "$WORK/scene.toml" "$@"
