@@ -99,58 +99,58 @@ def gaps(replay, step, radius, owners, partners):
 
 
 def count_tests(replay, radius, owners, partners, skins):
-    """Pair tests of each way, summed over the replay's steps (see the module's docstring)."""
+    """Pair tests of each way, summed over the replay's steps (see the module's docstring).
+
+    For each near skin s: (refreshes, near tests, tests with per-entry thresholds in those lists,
+    touching pairs met). An infinite s is every candidate, with its thresholds never restarted:
+    the lists' only refresh is the first, which the candidates' own sift at the build stands for.
+    Touching pairs are due at every step in every list, so each skin meets the same ones.
+    """
     every_pair = np.arange(len(owners))
-    counts = {"touching": 0, "thresholds": 0, "near": {}}
-
-    # Per-entry thresholds over every candidate, and the floor on the way.
-    threshold = np.full(len(owners), -np.inf)
-    for step in range(replay.steps):
-        path = replay.path[step]
-        tested = every_pair[path[owners] + path[partners] >= threshold]
-        gap = gaps(replay, step, radius, owners[tested], partners[tested])
-        counts["thresholds"] += len(tested)
-        counts["touching"] += int((gap < 0).sum())
-        threshold[tested] = path[owners[tested]] + path[partners[tested]] + np.maximum(gap, 0.0)
-
+    counts = {}
     for skin in skins:
         near = None
         budget = 0.0
-        refreshes = near_tests = threshold_tests = 0
+        refreshes = near_tests = threshold_tests = touching = 0
         for step in range(replay.steps):
             if near is None or budget >= skin:
                 near = every_pair[gaps(replay, step, radius, owners, partners) < skin]
-                near_threshold = np.full(len(near), -np.inf)
+                threshold = np.full(len(near), -np.inf)
                 budget = 0.0
                 refreshes += 1
             near_tests += len(near)
             path = replay.path[step]
-            due = path[owners[near]] + path[partners[near]] >= near_threshold
+            due = path[owners[near]] + path[partners[near]] >= threshold
             tested = near[due]
             gap = gaps(replay, step, radius, owners[tested], partners[tested])
             threshold_tests += len(tested)
-            near_threshold[due] = path[owners[tested]] + path[partners[tested]] + np.maximum(gap, 0.0)
+            touching += int((gap < 0).sum())
+            threshold[due] = path[owners[tested]] + path[partners[tested]] + np.maximum(gap, 0.0)
             budget += 2.0 * replay.largest[step]
-        counts["near"][skin] = (refreshes, near_tests, threshold_tests)
+        counts[skin] = (refreshes, near_tests, threshold_tests, touching)
     return counts
 
 
 def report(counts, particles, candidates, steps, near_cost, candidate_cost, check_cost):
+    """Prints `counts` (count_tests, with an infinite skin for every candidate) per particle-step."""
     per = float(particles * steps)
-    floor = counts["touching"] / per
+    _, _, every_candidate_tests, touching = counts[np.inf]
+    floor = touching / per
     print(f"{particles} particles, {candidates} candidate pairs ({candidates / particles:.2f} per particle), "
           f"{steps} steps")
     print("pair tests per particle-step, and the sift's instructions at "
           f"{near_cost:g} per near test and {candidate_cost:g} per candidate at a refresh "
           f"(per-entry thresholds: {near_cost:g} per test and {check_cost:g} per check):")
     print(f"  the floor (touching pairs only):          {floor:.3f} tests, {near_cost * floor:.1f} instructions")
-    tests = counts["thresholds"] / per
+    tests = every_candidate_tests / per
     checks = candidates / particles
     print(f"  per-entry thresholds, every candidate:    {tests:.3f} tests, {checks:.2f} checks, "
           f"{near_cost * tests + check_cost * checks:.1f} instructions")
     print("  near skin [m]  refreshes  near tests  candidates tested  instructions"
           "  | per-entry thresholds in the near lists: tests  instructions")
-    for skin, (refreshes, near_tests, threshold_tests) in counts["near"].items():
+    for skin, (refreshes, near_tests, threshold_tests, _) in counts.items():
+        if skin == np.inf:
+            continue
         near = near_tests / per
         full = refreshes * candidates / per
         threshold = threshold_tests / per
@@ -165,7 +165,7 @@ def self_test():
     A and B touch and rest; C, at a gap g = 2.5 u from B, moves away by u per step (u = 2^-30 m,
     near skin s = 31 u). Every comparison below is decided by at least u/2, so the rounding of
     the interpolation between frames 5 steps apart cannot turn it.
-    - Floor: A-B every step, T tests in T steps.
+    - Floor: A-B every step, T touching pairs met in T steps, by every way.
     - Per-entry thresholds: A-B every step; B-C at t = 0 and then when C has moved by the gap it
       had at its last test: t_{k+1} = 2 t_k + 3, so t = 0, 3, 9, 21, 45, 93 for T = 100.
     - Near lists: τ = u, refreshed when 2 u t reaches s, every 16 steps: 7 refreshes in 100 steps.
@@ -191,8 +191,9 @@ def self_test():
         # The motion is linear, so the interpolation between frames must give every step's place.
         if not all(np.allclose(replay.position(step), frames[step], rtol=0, atol=1e-18) for step in range(steps + 1)):
             failures.append(f"frames every {every} steps: the interpolated positions are not the motion's")
-        counts = count_tests(replay, radius, owners, partners, [31 * u])
-        want = {"touching": steps, "thresholds": steps + 6, "near": {31 * u: (7, steps + 32, steps + 4)}}
+        counts = count_tests(replay, radius, owners, partners, [np.inf, 31 * u])
+        # Every candidate: one refresh, both pairs' entries at every step (2 T).
+        want = {np.inf: (1, 2 * steps, steps + 6, steps), 31 * u: (7, steps + 32, steps + 4, steps)}
         if counts != want:
             failures.append(f"frames every {every} steps: counted {counts}, want {want}")
     # The periodic image: a pair across the box's edge is found and its gap measured through it.
@@ -244,17 +245,17 @@ def main():
     every = scene["output"]["every_steps"]
 
     with h5py.File(args.frames, "r") as file:
-        names = sorted(file["frames"].keys())
         frames, radius = [], None
-        for name in names:
+        for name in sorted(file["frames"].keys()):
             frame = file["frames"][name]
             order = np.argsort(frame["id"][:])  # the store is sorted in space: follow the ids
             frames.append(frame["position"][:][order])
-            radius = frame["radius"][:][order]
+            if radius is None:
+                radius = frame["radius"][:][order]
     replay = Replay(frames, every, box)
     owners, partners = candidate_pairs(replay.frames[0], radius, skin, box)
     skins = [float(value) for value in args.skins.split(",")]
-    counts = count_tests(replay, radius, owners, partners, skins)
+    counts = count_tests(replay, radius, owners, partners, [np.inf] + skins)
     report(counts, len(radius), len(owners), replay.steps, args.near_cost, args.candidate_cost, args.check_cost)
     largest = replay.largest
     each = np.diff(np.array(replay.path), axis=0)
