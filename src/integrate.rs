@@ -488,13 +488,30 @@ fn kick_block<const FOLDED: bool>(
 }
 
 /// Whether every component of `vectors` is finite.
+///
+/// `c × 0` is exactly ±0 for a finite component and NaN for an infinite or NaN one, and a NaN
+/// stays NaN through any sum, so the components are finite if and only if every lane's sum of
+/// `c × 0` is 0. Two vector instructions per register of components, against five for the
+/// lane-wise `is_finite` test with its masks packed and combined; no branch per component.
 #[inline(always)]
 fn all_finite(vectors: &[DVec3]) -> bool {
-    // `&`, not `&&`: no branch per component.
-    components(vectors)
-        .iter()
-        .fold(true, |finite, c| finite & c.is_finite())
+    let components = components(vectors);
+    let mut lanes = [0.0; FINITE_LANES];
+    let mut groups = components.chunks_exact(FINITE_LANES);
+    for group in &mut groups {
+        for (lane, &c) in lanes.iter_mut().zip(group) {
+            *lane += c * 0.0;
+        }
+    }
+    for (lane, &c) in lanes.iter_mut().zip(groups.remainder()) {
+        *lane += c * 0.0;
+    }
+    lanes.iter().all(|&lane| lane == 0.0)
 }
+
+/// Lanes of [`all_finite`]: two AVX-512 registers, so that each add waits on its own register's
+/// last add only every other group.
+const FINITE_LANES: usize = 16;
 
 /// Each of `factors` three times, into `spread` (at least three times as long): the factor of
 /// every component of its particle's vector.
@@ -813,6 +830,30 @@ mod tests {
         assert_eq!(first_non_finite(&particles), Some((CHUNK + 3, "velocity")));
         particles.force[7].x = f64::NEG_INFINITY;
         assert_eq!(first_non_finite(&particles), Some((7, "force")));
+    }
+
+    /// Any one infinite or NaN component, in any lane or the remainder, makes a set of vectors
+    /// not finite; the extremes of the finite numbers (the largest, the smallest subnormal,
+    /// both zeros) do not.
+    #[test]
+    fn one_non_finite_component_anywhere_is_found() {
+        let count = 2 * FINITE_LANES + 5; // 111 components: six full groups and a remainder
+        let extremes = [f64::MAX, f64::MIN, 5e-324, -0.0, 0.0, 1.0];
+        let finite: Vec<DVec3> = (0..count)
+            .map(|k| {
+                let e = |i: usize| extremes[(3 * k + i) % extremes.len()];
+                DVec3::new(e(0), e(1), e(2))
+            })
+            .collect();
+        assert!(all_finite(&finite));
+        assert!(all_finite(&[]));
+        for bad in [f64::INFINITY, f64::NEG_INFINITY, f64::NAN] {
+            for component in 0..3 * count {
+                let mut vectors = finite.clone();
+                components_mut(&mut vectors)[component] = bad;
+                assert!(!all_finite(&vectors), "{bad} at component {component}");
+            }
+        }
     }
 
     /// The lanes' maximum is the largest |v|² wherever the fastest particle lies (in any lane,
