@@ -63,6 +63,60 @@ fn loop_avx512<K: Kernel>(kernel: K) {
     kernel.run();
 }
 
+/// Lanes of [`Largest`]: as many `f64` as an AVX-512 register holds.
+const LARGEST_LANES: usize = 8;
+
+/// The largest of a stream of values, kept lane by lane, for the maxima the step takes over the
+/// particles (the drift's largest speed, the largest heat rate, the largest displacement since
+/// the last build). `f64::max` over the values one at a time is a scalar chain, each value's
+/// `max` waiting on the last with a NaN select per value (`vmaxsd`, `vcmpunordsd`,
+/// `vblendvpd`: about 10 instructions per particle for the drift's speed, forty-second round of
+/// docs/performance.md); here each lane keeps its larger value by a comparison, one vector
+/// `max` per register of values in a [`Kernel`]'s vector builds. A maximum is exact in any
+/// order, so the result is bitwise that of the chain, and a NaN value is passed over as
+/// `f64::max` passes it (a comparison with NaN is false).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Largest {
+    lanes: [f64; LARGEST_LANES],
+}
+
+impl Largest {
+    /// No value yet: [`Largest::value`] gives `start` (not NaN) until a larger one is taken.
+    pub(crate) fn new(start: f64) -> Self {
+        Self {
+            lanes: [start; LARGEST_LANES],
+        }
+    }
+
+    /// Takes in `values`.
+    #[inline(always)]
+    pub(crate) fn take(&mut self, values: &[f64]) {
+        let mut groups = values.chunks_exact(LARGEST_LANES);
+        for group in &mut groups {
+            for (lane, &value) in self.lanes.iter_mut().zip(group) {
+                *lane = larger(*lane, value);
+            }
+        }
+        for (lane, &value) in self.lanes.iter_mut().zip(groups.remainder()) {
+            *lane = larger(*lane, value);
+        }
+    }
+
+    /// The largest value taken in, or the start.
+    #[inline(always)]
+    pub(crate) fn value(&self) -> f64 {
+        self.lanes[1..]
+            .iter()
+            .fold(self.lanes[0], |largest, &lane| larger(largest, lane))
+    }
+}
+
+/// `candidate` if it is larger than `kept`, else `kept` (so a NaN candidate is passed over).
+#[inline(always)]
+fn larger(kept: f64, candidate: f64) -> f64 {
+    if candidate > kept { candidate } else { kept }
+}
+
 /// Which build the kernels take. Made only by [`InstructionSet::detect`] and
 /// [`InstructionSet::available`], so that a build runs only where the processor has its
 /// instructions.
@@ -192,6 +246,33 @@ pub fn kernel_build() -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The lanes' largest value is the largest taken in wherever it lies (in any lane, in a
+    /// remainder, in a later call), NaN is passed over, and the start stays the value until a
+    /// larger one comes.
+    #[test]
+    fn the_largest_value_is_found_in_any_lane_and_call() {
+        let count = 3 * LARGEST_LANES + 5;
+        #[allow(clippy::cast_precision_loss)]
+        let small: Vec<f64> = (0..count).map(|k| -1.0 - (k % 7) as f64).collect();
+        for largest in 0..count {
+            let mut values = small.clone();
+            values[largest] = 2.5;
+            values[(largest + 3) % count] = f64::NAN;
+            // Calls of 13, 13 and 3 values: each leaves a remainder.
+            let mut lanes = Largest::new(-100.0);
+            for part in values.chunks(13) {
+                lanes.take(part);
+            }
+            assert_eq!(lanes.value(), 2.5, "largest at {largest}");
+        }
+        let mut lanes = Largest::new(0.0);
+        lanes.take(&small);
+        assert_eq!(lanes.value(), 0.0);
+        lanes.take(&[f64::NAN; 3]);
+        assert_eq!(lanes.value(), 0.0);
+        assert_eq!(Largest::new(-3.0).value(), -3.0);
+    }
 
     /// A cap keeps the kernels at or below it, never below the baseline, and takes the widest
     /// build the processor runs within it.

@@ -27,6 +27,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
+use crate::simd;
+
 /// How long a member waits for the next job before it sleeps: far longer than the gaps between
 /// the regions of a step (microseconds), far shorter than a human notices a busy core. For the
 /// first eighth it spins, then it yields its core to other threads between looks.
@@ -295,27 +297,69 @@ pub fn optional_items<T>(slice: Option<&mut [T]>) -> impl Iterator<Item = Option
 
 /// The largest `value(a[k], b[k])` over the particles `k` (0 without any, and NaN passed over as
 /// `f64::max` does), in items of [`PARTICLES_PER_ITEM`] on the team if `parallel`. A largest
-/// value is exact in any order, so the thread count does not change it.
-pub fn largest<A: Sync, B: Sync>(
+/// value is exact in any order, so the thread count does not change it. Each item runs in the
+/// widest vector build (`simd::dispatch`): the values of a block of particles in a loop of
+/// their own, then their maximum lane by lane (`simd::Largest`), so that `value` (a division,
+/// a squared distance) takes a register of particles per instruction.
+pub fn largest<A: Sync, B: Sync, F: Fn(&A, &B) -> f64 + Sync>(
     parallel: bool,
     (a, b): (&[A], &[B]),
-    value: impl Fn(&A, &B) -> f64 + Sync,
+    value: F,
 ) -> f64 {
     let items: Vec<_> = a
         .chunks(PARTICLES_PER_ITEM)
         .zip(b.chunks(PARTICLES_PER_ITEM))
         .collect();
+    let set = simd::InstructionSet::detect();
     fold_items(
         parallel,
         items,
         || 0.0,
         |largest: f64, _, (a, b)| {
-            a.iter()
-                .zip(b)
-                .fold(largest, |largest, (a, b)| largest.max(value(a, b)))
+            let mut lanes = simd::Largest::new(largest);
+            simd::dispatch(
+                set,
+                LargestOf {
+                    a,
+                    b,
+                    value: &value,
+                    lanes: &mut lanes,
+                },
+            );
+            lanes.value()
         },
         f64::max,
     )
+}
+
+/// Particles per block of [`LargestOf`]: the block's values stay in the first-level cache.
+const LARGEST_BLOCK: usize = 64;
+
+/// The values `value(a[k], b[k])` of an item's particles taken into `lanes`, a
+/// [`simd::Kernel`].
+struct LargestOf<'a, A, B, F> {
+    a: &'a [A],
+    b: &'a [B],
+    value: &'a F,
+    lanes: &'a mut simd::Largest,
+}
+
+impl<A, B, F: Fn(&A, &B) -> f64> simd::Kernel for LargestOf<'_, A, B, F> {
+    #[inline(always)]
+    fn run(self) {
+        let mut values = [0.0; LARGEST_BLOCK];
+        for (a, b) in self
+            .a
+            .chunks(LARGEST_BLOCK)
+            .zip(self.b.chunks(LARGEST_BLOCK))
+        {
+            let values = &mut values[..a.len()];
+            for ((value, a), b) in values.iter_mut().zip(a).zip(b) {
+                *value = (self.value)(a, b);
+            }
+            self.lanes.take(values);
+        }
+    }
 }
 
 /// The items folded in order into one partial, merged into `identity()`.
