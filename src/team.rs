@@ -306,6 +306,9 @@ pub fn largest<A: Sync, B: Sync, F: Fn(&A, &B) -> f64 + Sync>(
     (a, b): (&[A], &[B]),
     value: F,
 ) -> f64 {
+    // Equal lengths, so that each block's values are all of the block (none left over from
+    // the last one).
+    assert_eq!(a.len(), b.len(), "one value of each slice per particle");
     let items: Vec<_> = a
         .chunks(PARTICLES_PER_ITEM)
         .zip(b.chunks(PARTICLES_PER_ITEM))
