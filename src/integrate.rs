@@ -464,8 +464,8 @@ fn all_finite(vectors: &[DVec3]) -> bool {
     lanes.iter().all(|&lane| lane == 0.0)
 }
 
-/// Lanes of [`all_finite`]: two AVX-512 registers, so that each add waits on its own register's
-/// last add only every other group.
+/// Lanes of [`all_finite`]: two AVX-512 registers (four AVX2), so that two or more chains of
+/// adds, each waiting only on its own register's last add, run side by side.
 const FINITE_LANES: usize = 16;
 
 /// Each of `factors` three times, into `spread` (at least three times as long): the factor of
