@@ -14,7 +14,7 @@ use glam::DVec3;
 
 use crate::contact::rolling;
 use crate::particles::{Particles, Rotation};
-use crate::simd::{InstructionSet, Kernel, Largest, dispatch};
+use crate::simd::{InstructionSet, Kernel, Largest, dispatch, fold_lanes};
 use crate::team::{PARTICLES_PER_ITEM as CHUNK, optional_items};
 use crate::thermal::HeatSums;
 
@@ -450,17 +450,8 @@ fn kick_block<const FOLDED: bool>(
 /// lane-wise `is_finite` test with its masks packed and combined; no branch per component.
 #[inline(always)]
 fn all_finite(vectors: &[DVec3]) -> bool {
-    let components = components(vectors);
     let mut lanes = [0.0; FINITE_LANES];
-    let mut groups = components.chunks_exact(FINITE_LANES);
-    for group in &mut groups {
-        for (lane, &c) in lanes.iter_mut().zip(group) {
-            *lane += c * 0.0;
-        }
-    }
-    for (lane, &c) in lanes.iter_mut().zip(groups.remainder()) {
-        *lane += c * 0.0;
-    }
+    fold_lanes(&mut lanes, components(vectors), |lane, c| lane + c * 0.0);
     lanes.iter().all(|&lane| lane == 0.0)
 }
 

@@ -91,15 +91,7 @@ impl Largest {
     /// Takes in `values`.
     #[inline(always)]
     pub(crate) fn take(&mut self, values: &[f64]) {
-        let mut groups = values.chunks_exact(LARGEST_LANES);
-        for group in &mut groups {
-            for (lane, &value) in self.lanes.iter_mut().zip(group) {
-                *lane = larger(*lane, value);
-            }
-        }
-        for (lane, &value) in self.lanes.iter_mut().zip(groups.remainder()) {
-            *lane = larger(*lane, value);
-        }
+        fold_lanes(&mut self.lanes, values, larger);
     }
 
     /// The largest value taken in, or the start.
@@ -108,6 +100,28 @@ impl Largest {
         self.lanes[1..]
             .iter()
             .fold(self.lanes[0], |largest, &lane| larger(largest, lane))
+    }
+}
+
+/// `values` folded into `lanes`, value k into lane k mod N: `lane = fold(lane, value)`. With
+/// the lanes independent, a [`Kernel`]'s vector builds fold a register of values per
+/// instruction, where one accumulator would be a chain of scalar operations. `fold` must give
+/// the same result in any order of the values for the result to be that of a one-by-one fold
+/// (a maximum; a sum of exact zeros and NaNs, as `integrate`'s finite test folds).
+#[inline(always)]
+pub(crate) fn fold_lanes<const N: usize>(
+    lanes: &mut [f64; N],
+    values: &[f64],
+    fold: impl Fn(f64, f64) -> f64,
+) {
+    let mut groups = values.chunks_exact(N);
+    for group in &mut groups {
+        for (lane, &value) in lanes.iter_mut().zip(group) {
+            *lane = fold(*lane, value);
+        }
+    }
+    for (lane, &value) in lanes.iter_mut().zip(groups.remainder()) {
+        *lane = fold(*lane, value);
     }
 }
 
