@@ -5,9 +5,9 @@
 //! where it records its near list, the near list otherwise) for the pairs that need work,
 //! copies the touching ones into the lanes of a batch (`handle_kept`), runs the vectorised laws
 //! over a full batch (`lanes::run`) and writes the results back in the list's order
-//! ([`Batch::flush`]): each partner's share at once, each owner's summed over its slots. The
-//! targets are opened per visit ([`Scatter::open`]), so the writes check their bounds once per
-//! visit.
+//! ([`Batch::flush`]): each contact's shares added to its two particles at once, so every sum
+//! is formed in the list's order, whatever the thread count. The targets are opened per visit
+//! ([`Scatter::open`]), so the writes check their bounds once per visit.
 
 use glam::DVec3;
 
@@ -162,7 +162,6 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                 });
             }
             batch.flush::<BONDS, FRICTION, HEAT>(model, reads, targets, set, summary);
-            batch.finish_owner(targets);
             batch.release_buffers();
         },
         ForceSummary::merge,
@@ -261,20 +260,8 @@ enum Event<'s> {
     },
 }
 
-/// What one owner's pairs add to the owner itself, summed over its slots in order and written
-/// once when the next owner begins.
-#[derive(Debug, Clone, Copy)]
-struct OwnerSums<'s> {
-    owner: Member<'s>,
-    force: DVec3,
-    lost: f64,
-    torque: DVec3,
-    heat: f64,
-    conductance: f64,
-}
-
-/// A slab's contacts on their way through the kernel: the lanes being filled, the events of the
-/// slots found since the last flush, and the sums of the owner being written back.
+/// A slab's contacts on their way through the kernel: the lanes being filled and the events of
+/// the slots found since the last flush.
 struct Batch<'r, 's> {
     slab: &'r SlabVisit<'s>,
     /// The time the contacts act over \[s\]: the step's dt, 0 at the set-up evaluation.
@@ -282,7 +269,6 @@ struct Batch<'r, 's> {
     lanes: ContactLanes,
     filled: usize,
     events: Vec<Event<'s>>,
-    owner: Option<OwnerSums<'s>>,
     /// The slots that need work, of the owners sifted since the last [`handle_kept`], in order:
     /// the first `kept_count` entries (those beyond are the sift's scratch, [`make_room`]).
     kept: Vec<KeptSlot<'s>>,
@@ -344,7 +330,6 @@ impl<'r, 's> Batch<'r, 's> {
             lanes: ContactLanes::for_model(model),
             filled: 0,
             events: recycle(buffers.events),
-            owner: None,
             kept: recycle(buffers.kept),
             kept_count: 0,
         }
@@ -360,7 +345,8 @@ impl<'r, 's> Batch<'r, 's> {
     }
 
     /// Runs the laws of the filled lanes and writes back every event since the last flush, in
-    /// order: the partners' shares at once, the owners' summed per owner.
+    /// order: each contact's shares to both particles at once, the owner's and then the
+    /// partner's, as a serial loop over the pairs would add them.
     #[inline]
     fn flush<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         &mut self,
@@ -388,7 +374,7 @@ impl<'r, 's> Batch<'r, 's> {
                     partner,
                     energy,
                 } => {
-                    self.begin_owner(owner, targets).lost += 0.5 * energy;
+                    targets.lost.update(owner, |l| l + 0.5 * energy);
                     targets.lost.update(partner, |l| l + 0.5 * energy);
                 }
                 Event::Contact {
@@ -396,10 +382,6 @@ impl<'r, 's> Batch<'r, 's> {
                     partner,
                     slot,
                 } => {
-                    // The last owner's sums are written first, so that none of this contact's
-                    // outputs is held (in registers, or spilled) across their writes: two
-                    // owners in three change at a contact on a packed bed.
-                    self.begin_owner(owner, targets);
                     let out = self.lanes.output(lane);
                     let [r_a, r_b] = self.lanes.radii(lane);
                     let state_before = self.lanes.state_before(lane);
@@ -412,18 +394,18 @@ impl<'r, 's> Batch<'r, 's> {
                             states.write(slot, out.state);
                         }
                     }
-                    let sums = self.owner.as_mut().expect("begun above");
                     if let Some(histories) = histories {
                         histories.write(own_slab, slot, out.spring);
-                        sums.torque += out.torque_on_a;
                         if let Some(torque) = torque {
+                            torque.update(owner, |t| t + out.torque_on_a);
                             torque.update(partner, |t| t + out.torque_on_b);
                         }
                     }
-                    sums.force += out.force_on_a;
-                    sums.lost += 0.5 * out.lost;
+                    targets.force.update(owner, |f| f + out.force_on_a);
                     targets.force.update(partner, |f| f - out.force_on_a);
-                    targets.lost.update(partner, |l| l + 0.5 * out.lost);
+                    let half_lost = 0.5 * out.lost;
+                    targets.lost.update(owner, |l| l + half_lost);
+                    targets.lost.update(partner, |l| l + half_lost);
                     if let Some(h) = heat {
                         let conductance = thermal::pair_conductance(
                             h.model,
@@ -434,8 +416,7 @@ impl<'r, 's> Batch<'r, 's> {
                         );
                         let flow =
                             conductance * (h.temperature.get(partner) - h.temperature.get(owner));
-                        sums.heat += flow;
-                        sums.conductance += conductance;
+                        h.sums.update(owner, |s| s.add(flow, conductance));
                         h.sums.update(partner, |s| s.add(-flow, conductance));
                     }
                 }
@@ -457,47 +438,6 @@ impl<'r, 's> Batch<'r, 's> {
                 partner,
                 energy: spring.spring_energy,
             });
-        }
-    }
-
-    /// The sums of `owner`, begun if it is not the owner being written back (whose sums are
-    /// then written first).
-    #[inline]
-    fn begin_owner(
-        &mut self,
-        owner: Member<'s>,
-        targets: &OpenTargets<'_, 's>,
-    ) -> &mut OwnerSums<'s> {
-        if self
-            .owner
-            .is_none_or(|sums| sums.owner.index() != owner.index())
-        {
-            self.finish_owner(targets);
-            self.owner = Some(OwnerSums {
-                owner,
-                force: DVec3::ZERO,
-                lost: 0.0,
-                torque: DVec3::ZERO,
-                heat: 0.0,
-                conductance: 0.0,
-            });
-        }
-        self.owner.as_mut().expect("begun above")
-    }
-
-    /// Writes the sums of the owner being written back, if any.
-    #[inline]
-    fn finish_owner(&mut self, targets: &OpenTargets<'_, 's>) {
-        if let Some(sums) = self.owner.take() {
-            targets.force.update(sums.owner, |f| f + sums.force);
-            targets.lost.update(sums.owner, |l| l + sums.lost);
-            if let Some(torque) = &targets.torque {
-                torque.update(sums.owner, |t| t + sums.torque);
-            }
-            if let Some(h) = &targets.heat {
-                h.sums
-                    .update(sums.owner, |s| s.add(sums.heat, sums.conductance));
-            }
         }
     }
 }
