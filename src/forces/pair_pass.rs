@@ -158,7 +158,7 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             // The springs the visit did not meet belong to pairs that came apart.
             if let Some(histories) = targets.tangential.as_ref().filter(|_| FRICTION) {
                 histories.release_unmet(slab.own_slab(), |slot, spring| {
-                    batch.release(slot, spring);
+                    release(slab, &targets.lost, slot, spring);
                 });
             }
             batch.flush::<BONDS, FRICTION, HEAT>(model, reads, targets, set, summary);
@@ -241,34 +241,25 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool, const PREFETCH: bool>(
     batch.kept_count = count;
 }
 
-/// What happened at one slot, in the order the owners and their slots come: what the write-back
-/// ([`Batch::flush`]) replays, so that every sum is formed in the list's order.
+/// The touching pair in a lane of the batch: whom the write-back ([`Batch::flush`]) adds the
+/// lane's results to.
 #[derive(Debug, Clone, Copy)]
-enum Event<'s> {
-    /// A touching pair, whose laws run in the next lane of the batch.
-    Contact {
-        owner: Member<'s>,
-        partner: Member<'s>,
-        slot: Slot<'s>,
-    },
-    /// A pair that came apart while its tangential spring held `energy` \[J\]: lost, half to
-    /// each particle.
-    Released {
-        owner: Member<'s>,
-        partner: Member<'s>,
-        energy: f64,
-    },
+struct LanePair<'s> {
+    owner: Member<'s>,
+    partner: Member<'s>,
+    slot: Slot<'s>,
 }
 
-/// A slab's contacts on their way through the kernel: the lanes being filled and the events of
-/// the slots found since the last flush.
+/// A slab's contacts on their way through the kernel: the lanes being filled and their pairs.
 struct Batch<'r, 's> {
     slab: &'r SlabVisit<'s>,
     /// The time the contacts act over \[s\]: the step's dt, 0 at the set-up evaluation.
     interval: f64,
     lanes: ContactLanes,
+    /// The pairs of the first `filled` lanes ([`Batch::fill_pair`]); `None` until the visit's
+    /// first contact, whose pair the others start as (the tokens have no value of their own).
+    pairs: Option<[LanePair<'s>; LANES]>,
     filled: usize,
-    events: Vec<Event<'s>>,
     /// The slots that need work, of the owners sifted since the last [`handle_kept`], in order:
     /// the first `kept_count` entries (those beyond are the sift's scratch, [`make_room`]).
     kept: Vec<KeptSlot<'s>>,
@@ -297,7 +288,6 @@ const KEPT_PER_ROUND: usize = 64;
 /// empty buffer changes its element type's lifetime on the way in and out ([`recycle`]).
 #[derive(Default)]
 struct BatchBuffers {
-    events: Vec<Event<'static>>,
     kept: Vec<KeptSlot<'static>>,
 }
 
@@ -328,8 +318,8 @@ impl<'r, 's> Batch<'r, 's> {
             slab,
             interval,
             lanes: ContactLanes::for_model(model),
+            pairs: None,
             filled: 0,
-            events: recycle(buffers.events),
             kept: recycle(buffers.kept),
             kept_count: 0,
         }
@@ -338,15 +328,14 @@ impl<'r, 's> Batch<'r, 's> {
     /// Gives the buffers back to the thread, for its next visit.
     fn release_buffers(self) {
         let buffers = BatchBuffers {
-            events: recycle(self.events),
             kept: recycle(self.kept),
         };
         BATCH_BUFFERS.with_borrow_mut(|held| *held = buffers);
     }
 
-    /// Runs the laws of the filled lanes and writes back every event since the last flush, in
-    /// order: each contact's shares to both particles at once, the owner's and then the
-    /// partner's, as a serial loop over the pairs would add them.
+    /// Runs the laws of the filled lanes and writes their results back lane by lane, in the
+    /// order the pairs were found: each contact's shares to both particles at once, the owner's
+    /// and then the partner's, as a serial loop over the pairs would add them.
     #[inline]
     fn flush<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         &mut self,
@@ -356,89 +345,87 @@ impl<'r, 's> Batch<'r, 's> {
         set: InstructionSet,
         summary: &mut ForceSummary,
     ) {
-        if self.filled > 0 {
+        let filled = std::mem::take(&mut self.filled);
+        // Every filled lane is a touching pair, met once.
+        summary.pair_contacts += filled;
+        // `None` until the visit's first contact: then nothing was filled.
+        let Some(pairs) = &self.pairs else {
+            return;
+        };
+        if filled > 0 {
             lanes::run::<BONDS, FRICTION>(set, model, self.interval, &mut self.lanes);
         }
-        // Every filled lane is a touching pair, met once.
-        summary.pair_contacts += self.filled;
         let states = targets.states.as_ref().filter(|_| BONDS);
         let histories = targets.tangential.as_ref().filter(|_| FRICTION);
         let torque = targets.torque.as_ref().filter(|_| FRICTION);
         let own_slab = self.slab.own_slab();
         let heat = targets.heat.as_ref().filter(|_| HEAT);
-        let mut lane = 0;
-        for k in 0..self.events.len() {
-            match self.events[k] {
-                Event::Released {
-                    owner,
-                    partner,
-                    energy,
-                } => {
-                    targets.lost.update(owner, |l| l + 0.5 * energy);
-                    targets.lost.update(partner, |l| l + 0.5 * energy);
-                }
-                Event::Contact {
-                    owner,
-                    partner,
-                    slot,
-                } => {
-                    let out = self.lanes.output(lane);
-                    let [r_a, r_b] = self.lanes.radii(lane);
-                    let state_before = self.lanes.state_before(lane);
-                    lane += 1;
-                    summary.observe_overlap_at(out.overlap_ratio, || {
-                        if r_a <= r_b { owner } else { partner }.index()
-                    });
-                    if let Some(states) = states {
-                        if out.state != state_before {
-                            states.write(slot, out.state);
-                        }
-                    }
-                    if let Some(histories) = histories {
-                        histories.write(own_slab, slot, out.spring);
-                        if let Some(torque) = torque {
-                            torque.update(owner, |t| t + out.torque_on_a);
-                            torque.update(partner, |t| t + out.torque_on_b);
-                        }
-                    }
-                    targets.force.update(owner, |f| f + out.force_on_a);
-                    targets.force.update(partner, |f| f - out.force_on_a);
-                    let half_lost = 0.5 * out.lost;
-                    targets.lost.update(owner, |l| l + half_lost);
-                    targets.lost.update(partner, |l| l + half_lost);
-                    if let Some(h) = heat {
-                        let conductance = thermal::pair_conductance(
-                            h.model,
-                            [reads.material.get(owner), reads.material.get(partner)],
-                            [r_a, r_b],
-                            out.overlap,
-                            out.contact_radius,
-                        );
-                        let flow =
-                            conductance * (h.temperature.get(partner) - h.temperature.get(owner));
-                        h.sums.update(owner, |s| s.add(flow, conductance));
-                        h.sums.update(partner, |s| s.add(-flow, conductance));
-                    }
-                }
-            }
-        }
-        self.events.clear();
-        self.filled = 0;
-    }
-
-    /// The spring of `slot`, whose pair came apart: it vanishes with the contact (k_t → 0 as
-    /// δ → 0), and what it held is lost, half to each particle, booked in slot order with the
-    /// contacts.
-    #[inline]
-    fn release(&mut self, slot: u32, spring: TangentialSpring) {
-        if spring.spring_energy != 0.0 {
-            let (owner, partner) = self.slab.pair_of_slot(slot);
-            self.events.push(Event::Released {
+        for (lane, pair) in pairs[..filled].iter().enumerate() {
+            let LanePair {
                 owner,
                 partner,
-                energy: spring.spring_energy,
+                slot,
+            } = *pair;
+            let out = self.lanes.output(lane);
+            let [r_a, r_b] = self.lanes.radii(lane);
+            let state_before = self.lanes.state_before(lane);
+            summary.observe_overlap_at(out.overlap_ratio, || {
+                if r_a <= r_b { owner } else { partner }.index()
             });
+            if let Some(states) = states {
+                if out.state != state_before {
+                    states.write(slot, out.state);
+                }
+            }
+            if let Some(histories) = histories {
+                histories.write(own_slab, slot, out.spring);
+                if let Some(torque) = torque {
+                    torque.update(owner, |t| t + out.torque_on_a);
+                    torque.update(partner, |t| t + out.torque_on_b);
+                }
+            }
+            targets.force.update(owner, |f| f + out.force_on_a);
+            targets.force.update(partner, |f| f - out.force_on_a);
+            let half_lost = 0.5 * out.lost;
+            targets.lost.update(owner, |l| l + half_lost);
+            targets.lost.update(partner, |l| l + half_lost);
+            if let Some(h) = heat {
+                let conductance = thermal::pair_conductance(
+                    h.model,
+                    [reads.material.get(owner), reads.material.get(partner)],
+                    [r_a, r_b],
+                    out.overlap,
+                    out.contact_radius,
+                );
+                let flow = conductance * (h.temperature.get(partner) - h.temperature.get(owner));
+                h.sums.update(owner, |s| s.add(flow, conductance));
+                h.sums.update(partner, |s| s.add(-flow, conductance));
+            }
         }
+    }
+
+    /// Writes `pair` into the next lane's pair, the lane whose inputs are being filled.
+    #[inline(always)]
+    fn fill_pair(&mut self, pair: LanePair<'s>) {
+        self.pairs.get_or_insert([pair; LANES])[self.filled] = pair;
+    }
+}
+
+/// The spring of `slot`, whose pair came apart: it vanishes with the contact (k_t → 0 as δ → 0),
+/// and what it held is lost, half to each particle, at once: the lost energy is a record, which
+/// no law reads back.
+#[inline]
+fn release<'s>(
+    slab: &SlabVisit<'s>,
+    lost: &Opened<'_, 's, f64, PerParticle>,
+    slot: u32,
+    spring: TangentialSpring,
+) {
+    if spring.spring_energy != 0.0 {
+        let (owner, partner) = slab.pair_of_slot(slot);
+        let half = 0.5 * spring.spring_energy;
+        lost.update(owner, |l| l + half);
+        lost.update(partner, |l| l + half);
     }
 }
 
@@ -589,7 +576,8 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     let histories = targets.tangential.as_ref().filter(|_| FRICTION);
     let omega = reads.angular_velocity.filter(|_| FRICTION);
     let melted = targets.heat.as_ref().filter(|_| HEAT).map(|h| h.melted);
-    let own_slab = batch.slab.own_slab();
+    let slab = batch.slab;
+    let own_slab = slab.own_slab();
     let uniform = batch.lanes.uniform_material();
     for k in 0..batch.kept_count {
         let KeptSlot {
@@ -654,7 +642,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             let (angular_velocity, held) = match (histories, omega) {
                 (Some(histories), Some(omega)) => {
                     let held = histories.read(own_slab, p, |slot, spring| {
-                        batch.release(slot, spring);
+                        release(slab, &targets.lost, slot, spring);
                     });
                     ([omega.get(owner), omega.get(partner)], held)
                 }
@@ -662,12 +650,12 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             };
             batch.lanes.set_spin(lane, angular_velocity, held);
         }
-        batch.filled += 1;
-        batch.events.push(Event::Contact {
+        batch.fill_pair(LanePair {
             owner,
             partner,
             slot: p,
         });
+        batch.filled += 1;
         if batch.filled == LANES {
             batch.flush::<BONDS, FRICTION, HEAT>(model, reads, targets, set, summary);
         }
