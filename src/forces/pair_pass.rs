@@ -404,10 +404,12 @@ impl<'r, 's> Batch<'r, 's> {
         }
     }
 
-    /// Writes `pair` into the next lane's pair, the lane whose inputs are being filled.
+    /// Completes the lane whose inputs are being filled: `pair` becomes its pair, and the lane
+    /// counts as filled.
     #[inline(always)]
     fn fill_pair(&mut self, pair: LanePair<'s>) {
         self.pairs.get_or_insert([pair; LANES])[self.filled] = pair;
+        self.filled += 1;
     }
 }
 
@@ -655,7 +657,6 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             partner,
             slot: p,
         });
-        batch.filled += 1;
         if batch.filled == LANES {
             batch.flush::<BONDS, FRICTION, HEAT>(model, reads, targets, set, summary);
         }
