@@ -59,7 +59,9 @@ for seed in "${seeds[@]}"; do
         }' "$work/$seed/run.log" >> "$table"
 done
 
-echo "$(basename "$scene") over ${#seeds[@]} seeds"
+plural=s
+((${#seeds[@]} == 1)) && plural=""
+echo "$(basename "$scene") over ${#seeds[@]} seed$plural"
 echo
 echo "| seed | spheres | bonds | melted | evaporating | energy residual |"
 echo "|---|---|---|---|---|---|"
