@@ -33,7 +33,7 @@ use crate::contact::{
 };
 use crate::model::Model;
 use crate::simd::{InstructionSet, Kernel, dispatch};
-use crate::thermal::conduction;
+use crate::thermal::{self, ConductionModel, PairConductivities, conduction};
 
 use super::{TangentialContact, tangential_step, unit_normal};
 
@@ -137,8 +137,14 @@ pub(super) struct ContactLanes {
     torque_on_b: Lane3,
     spring_history: Lane3,
     spring_energy: Lane<f64>,
+    // With conduction: the material pair's conductivities (input) and the contact's
+    // conductance [W/K] (output of `run_conductances`).
+    harmonic_conductivity: Lane<f64>,
+    conductivity: [Lane<f64>; 2],
+    conductance: Lane<f64>,
     /// Every lane holds the same material parameters, put there by [`Self::for_model`]: the
-    /// model has one material. [`Self::set`] then leaves them.
+    /// model has one material (and its conductivities, with a thermal model). [`Self::set`]
+    /// and [`Self::set_conductivities`] then leave them.
     uniform_material: bool,
 }
 
@@ -184,8 +190,15 @@ impl ContactLanes {
         let mut lanes = Self::default();
         if model.materials.len() == 1 {
             let material = PairMaterial::of(model, 0, 0);
+            let conductivities = model
+                .thermal
+                .as_ref()
+                .map(|thermal| thermal.pair_conductivities(0, 0));
             for i in 0..LANES {
                 lanes.set_pair_material::<true, true>(i, &material);
+                if let Some(k) = conductivities {
+                    lanes.put_conductivities(i, k);
+                }
             }
             lanes.uniform_material = true;
         }
@@ -297,6 +310,42 @@ impl ContactLanes {
         }
         self.held_history.set(i, held.history);
         self.held_energy[i] = held.spring_energy;
+    }
+
+    /// Puts lane `i`'s conductivities ([`thermal::contact_conductance`]), unless every lane
+    /// holds the model's one material's ([`Self::uniform_material`]).
+    #[inline(always)]
+    pub(super) fn set_conductivities(&mut self, i: usize, k: PairConductivities) {
+        if !self.uniform_material {
+            self.put_conductivities(i, k);
+        }
+    }
+
+    #[inline(always)]
+    fn put_conductivities(&mut self, i: usize, k: PairConductivities) {
+        self.harmonic_conductivity[i] = k.harmonic;
+        self.conductivity[0][i] = k.each[0];
+        self.conductivity[1][i] = k.each[1];
+    }
+
+    /// The conductance of lane `i`'s contact [W/K] (after [`Self::run_conductances`]).
+    #[inline(always)]
+    pub(super) fn conductance(&self, i: usize) -> f64 {
+        self.conductance[i]
+    }
+
+    /// Every lane's contact conductance by the conduction model (M.41, M.42, M.79) from what
+    /// [`run`] gave it (overlap, contact radius) and its conductivities, with the kernel built
+    /// for `set`.
+    #[inline]
+    pub(super) fn run_conductances(&mut self, set: InstructionSet, conduction: ConductionModel) {
+        dispatch(
+            set,
+            ConductanceKernel {
+                conduction,
+                lanes: self,
+            },
+        );
     }
 
     /// Whether a lane is bonded or its bond criterion holds: only then can the bond law change
@@ -517,6 +566,49 @@ impl<const BONDS: bool, const FRICTION: bool, const ROLLING: bool> Kernel
             let input = self.lanes.input::<BONDS, FRICTION>(i);
             let out = contact_step::<BONDS, FRICTION, ROLLING>(self.model, self.interval, &input);
             self.lanes.store::<BONDS, FRICTION>(i, &out);
+        }
+    }
+}
+
+/// [`thermal::contact_conductance`] over every lane (those past the batch's count hold stale
+/// inputs, whose results nobody reads), one loop per conduction model: the model's `match`
+/// stays outside the lanes, and the overlap-area model's division and square root run on
+/// vectors. Per contact of the 19.2k heat bed, the write-back had spent about 10 instructions on
+/// the `match` (a jump table), 12 on the conductivity table and 30 on the intersection radius.
+struct ConductanceKernel<'a> {
+    conduction: ConductionModel,
+    lanes: &'a mut ContactLanes,
+}
+
+impl ConductanceKernel<'_> {
+    /// Every lane's conductance by `conduction`, a constant in each of [`Kernel::run`]'s arms.
+    #[inline(always)]
+    fn fill(self, conduction: ConductionModel) {
+        let lanes = self.lanes;
+        for i in 0..LANES {
+            let k = PairConductivities {
+                harmonic: lanes.harmonic_conductivity[i],
+                each: [lanes.conductivity[0][i], lanes.conductivity[1][i]],
+            };
+            lanes.conductance[i] = thermal::contact_conductance(
+                conduction,
+                k,
+                [lanes.radius[0][i], lanes.radius[1][i]],
+                lanes.overlap[i],
+                lanes.contact_radius[i],
+            );
+        }
+    }
+}
+
+impl Kernel for ConductanceKernel<'_> {
+    #[inline(always)]
+    fn run(self) {
+        match self.conduction {
+            ConductionModel::None => self.fill(ConductionModel::None),
+            ConductionModel::BatchelorObrien => self.fill(ConductionModel::BatchelorObrien),
+            ConductionModel::OverlapArea => self.fill(ConductionModel::OverlapArea),
+            ConductionModel::ThermalPipe => self.fill(ConductionModel::ThermalPipe),
         }
     }
 }
@@ -870,6 +962,64 @@ pub(in crate::forces) mod tests {
         let model = Model::build(&Scene::from_toml(&two).expect("the test's scene")).0;
         assert_eq!(model.materials.len(), 2);
         assert!(!ContactLanes::for_model(&model).uniform_material());
+    }
+
+    /// Every build of the conductance kernel gives bitwise what [`thermal::contact_conductance`]
+    /// gives one contact at a time, for every conduction model, with each lane's own
+    /// conductivities (two materials of different k) and a lane whose spheres are apart (0).
+    #[test]
+    fn conductances_of_every_build_are_those_of_one_contact() {
+        let model = model();
+        let mut inputs = inputs(LANES);
+        // Lane 3 apart by 1 % of the radii: its overlap is negative.
+        let apart = inputs[3].radius[0] + inputs[3].radius[1];
+        inputs[3].separation = inputs[3].separation.normalize() * (1.01 * apart);
+        let conductivities = |i: usize| {
+            let [ka, kb] = [16.0 + i as f64, if i % 2 == 0 { 20.0 } else { 400.0 }];
+            PairConductivities {
+                harmonic: 2.0 * ka * kb / (ka + kb),
+                each: [ka, kb],
+            }
+        };
+        for conduction in [
+            ConductionModel::None,
+            ConductionModel::BatchelorObrien,
+            ConductionModel::OverlapArea,
+            ConductionModel::ThermalPipe,
+        ] {
+            for set in InstructionSet::available() {
+                let mut lanes = ContactLanes::default();
+                for (i, input) in inputs.iter().enumerate() {
+                    lanes.set::<false, false>(i, input);
+                    lanes.set_conductivities(i, conductivities(i));
+                }
+                run::<false, false>(set, &model, model.dt, &mut lanes);
+                lanes.run_conductances(set, conduction);
+                for i in 0..LANES {
+                    let out = lanes.output(i);
+                    let expected = thermal::contact_conductance(
+                        std::hint::black_box(conduction),
+                        conductivities(i),
+                        lanes.radii(i),
+                        out.overlap,
+                        out.contact_radius,
+                    );
+                    let got = lanes.conductance(i);
+                    assert_eq!(
+                        got.to_bits(),
+                        expected.to_bits(),
+                        "{conduction:?}, {set:?}, lane {i}"
+                    );
+                    // Apart or without conduction nothing flows; otherwise every lane conducts.
+                    let touching = i != 3;
+                    assert_eq!(
+                        got > 0.0,
+                        touching && conduction != ConductionModel::None,
+                        "{conduction:?}, {set:?}, lane {i}: {got}"
+                    );
+                }
+            }
+        }
     }
 
     /// Every build of the kernel gives bitwise what the laws give one contact at a time.

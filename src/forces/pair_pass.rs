@@ -23,7 +23,7 @@ use crate::scatter::{
     Member, NearTokens, Opened, OpenedReads, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
 };
 use crate::simd::InstructionSet;
-use crate::thermal::{self, HeatSums, ThermalModel};
+use crate::thermal::{HeatSums, ThermalModel};
 
 /// What the pair pass writes, shared by the concurrent slabs of a colour phase.
 pub(super) struct PairTargets<'a> {
@@ -352,14 +352,24 @@ impl<'r, 's> Batch<'r, 's> {
         let Some(pairs) = &self.pairs else {
             return;
         };
+        let heat = targets.heat.as_ref().filter(|_| HEAT);
         if filled > 0 {
             lanes::run::<BONDS, FRICTION>(set, model, self.interval, &mut self.lanes);
+            if let Some(h) = heat {
+                if !self.lanes.uniform_material() {
+                    for (lane, pair) in pairs[..filled].iter().enumerate() {
+                        let [a, b] = [pair.owner, pair.partner].map(|p| reads.material.get(p));
+                        self.lanes
+                            .set_conductivities(lane, h.model.pair_conductivities(a, b));
+                    }
+                }
+                self.lanes.run_conductances(set, h.model.conduction);
+            }
         }
         let states = targets.states.as_ref().filter(|_| BONDS);
         let histories = targets.tangential.as_ref().filter(|_| FRICTION);
         let torque = targets.torque.as_ref().filter(|_| FRICTION);
         let own_slab = self.slab.own_slab();
-        let heat = targets.heat.as_ref().filter(|_| HEAT);
         for (lane, pair) in pairs[..filled].iter().enumerate() {
             let LanePair {
                 owner,
@@ -390,13 +400,7 @@ impl<'r, 's> Batch<'r, 's> {
             targets.lost.update(owner, |l| l + half_lost);
             targets.lost.update(partner, |l| l + half_lost);
             if let Some(h) = heat {
-                let conductance = thermal::pair_conductance(
-                    h.model,
-                    [reads.material.get(owner), reads.material.get(partner)],
-                    [r_a, r_b],
-                    out.overlap,
-                    out.contact_radius,
-                );
+                let conductance = self.lanes.conductance(lane);
                 let flow = conductance * (h.temperature.get(partner) - h.temperature.get(owner));
                 h.sums.update(owner, |s| s.add(flow, conductance));
                 h.sums.update(partner, |s| s.add(-flow, conductance));

@@ -40,7 +40,7 @@ pub fn batchelor_obrien(conductivity_i: f64, conductivity_j: f64, contact_radius
 ///
 /// For equal spheres a_g² = r δ − δ²/4, about twice the Hertz a² = r* δ.
 #[must_use]
-#[inline]
+#[inline(always)]
 pub fn intersection_radius(radius_i: f64, radius_j: f64, distance: f64) -> f64 {
     let product = (radius_i + radius_j - distance)
         * (distance + radius_i - radius_j)
@@ -82,7 +82,7 @@ pub fn overlap_area(conductivity_i: f64, conductivity_j: f64, intersection_radiu
 /// a cylinder of cross-section π a² joining the two centres, `d = r_i + r_j − δ` apart, made of
 /// the two materials in series over lengths r_i and r_j.
 #[must_use]
-#[inline]
+#[inline(always)]
 pub fn thermal_pipe(
     conductivity_i: f64,
     conductivity_j: f64,

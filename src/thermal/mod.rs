@@ -162,6 +162,20 @@ impl ThermalModel {
         self.harmonic_conductivities[usize::from(a) * self.materials.len() + usize::from(b)]
     }
 
+    /// What a contact between materials a and b needs for its conductance
+    /// ([`contact_conductance`]).
+    #[must_use]
+    #[inline]
+    pub fn pair_conductivities(&self, a: u16, b: u16) -> PairConductivities {
+        PairConductivities {
+            harmonic: self.harmonic_conductivity(a, b),
+            each: [
+                self.materials[usize::from(a)].conductivity,
+                self.materials[usize::from(b)].conductivity,
+            ],
+        }
+    }
+
     /// Whether particles exchange heat with anything outside the bed (isothermal walls, gas,
     /// surroundings).
     #[must_use]
@@ -469,16 +483,37 @@ impl ThermalState {
     }
 }
 
-/// Conductance of the contact between two particles of materials `[ma, mb]` and radii
-/// `[ra, rb]` \[m\] at `overlap` \[m\], with the Hertz contact radius `contact = √(r* δ)`
-/// \[m\] ([`conduction::contact_radius`], M.40) (M.41, M.42, M.79) [W/K]; 0 without overlap.
+/// What a contact's conductance needs of its material pair [W/(m·K)]: `k* = 2 k_a k_b /
+/// (k_a + k_b)` (M.41) for Batchelor & O'Brien and the geometric overlap, and `k_a`, `k_b` for
+/// the thermal pipe (M.42).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PairConductivities {
+    /// `k*` (M.41) [W/(m·K)], from [`ThermalModel::harmonic_conductivity`]'s table.
+    pub harmonic: f64,
+    /// The two materials' conductivities `[k_a, k_b]` [W/(m·K)].
+    pub each: [f64; 2],
+}
+
+/// Conductance of the contact between two particles of radii `[ra, rb]` \[m\] with the
+/// conductivities `k` at `overlap` \[m\], with the Hertz contact radius `contact = √(r* δ)`
+/// \[m\] ([`conduction::contact_radius`], M.40), by the conduction model `conduction` [W/K];
+/// 0 without overlap:
+///
+/// ```text
+/// BatchelorObrien: H = 2 k* a                  (M.41)
+/// OverlapArea:     H = 2 k* √π a_g              (M.79, a_g the intersection radius)
+/// ThermalPipe:     H = k̄ π a² / d,  d = r_a + r_b − δ   (M.42)
+/// ```
+///
 /// The pair pass takes the contact radius from its contact kernel, which computes it for the
-/// Hertz force: the write-back then takes no square root for it, one contact at a time.
+/// Hertz force, and evaluates this over a batch of contacts at once with `conduction` fixed
+/// (`forces::lanes`), so that the model's `match` leaves the loop and the intersection radius's
+/// division and square root run on vectors.
 #[must_use]
 #[inline(always)]
-pub fn pair_conductance(
-    model: &ThermalModel,
-    [ma, mb]: [u16; 2],
+pub fn contact_conductance(
+    conduction: ConductionModel,
+    k: PairConductivities,
     [ra, rb]: [f64; 2],
     overlap: f64,
     contact: f64,
@@ -486,23 +521,38 @@ pub fn pair_conductance(
     if overlap <= 0.0 {
         return 0.0;
     }
-    match model.conduction {
+    match conduction {
         ConductionModel::None => 0.0,
-        // 2 k* a with k* from the per-material-pair table: no division in the hot loop.
-        ConductionModel::BatchelorObrien => 2.0 * model.harmonic_conductivity(ma, mb) * contact,
+        ConductionModel::BatchelorObrien => 2.0 * k.harmonic * contact,
         ConductionModel::OverlapArea => {
-            2.0 * model.harmonic_conductivity(ma, mb)
+            2.0 * k.harmonic
                 * std::f64::consts::PI.sqrt()
                 * conduction::intersection_radius(ra, rb, ra + rb - overlap)
         }
         ConductionModel::ThermalPipe => {
-            let (ka, kb) = (
-                model.materials[usize::from(ma)].conductivity,
-                model.materials[usize::from(mb)].conductivity,
-            );
+            let [ka, kb] = k.each;
             conduction::thermal_pipe(ka, kb, ra, rb, contact, ra + rb - overlap)
         }
     }
+}
+
+/// [`contact_conductance`] of two particles of materials `[ma, mb]` in `model` [W/K].
+#[must_use]
+#[inline(always)]
+pub fn pair_conductance(
+    model: &ThermalModel,
+    [ma, mb]: [u16; 2],
+    radii: [f64; 2],
+    overlap: f64,
+    contact: f64,
+) -> f64 {
+    contact_conductance(
+        model.conduction,
+        model.pair_conductivities(ma, mb),
+        radii,
+        overlap,
+        contact,
+    )
 }
 
 /// Contact conductances of every pair slot from the current positions, for the flow passes of
