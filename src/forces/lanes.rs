@@ -33,7 +33,7 @@ use crate::contact::{
 };
 use crate::model::Model;
 use crate::simd::{InstructionSet, Kernel, dispatch};
-use crate::thermal::{self, ConductionModel, PairConductivities, conduction};
+use crate::thermal::{self, ConductionModel, PairConductivities, ThermalModel, conduction};
 
 use super::{TangentialContact, tangential_step, unit_normal};
 
@@ -183,17 +183,16 @@ impl PairMaterial {
 }
 
 impl ContactLanes {
-    /// Empty lanes for the contacts of `model`. With one material, every pair has the same
+    /// Empty lanes for the contacts of `model`, with conduction by `thermal` (the pass's
+    /// thermal model, with `model`'s materials). With one material, every pair has the same
     /// parameters: the lanes take them here, once, instead of one contact at a time (five
-    /// stores per contact and the two materials' loads fewer).
-    pub(super) fn for_model(model: &Model) -> Self {
+    /// stores per contact and the two materials' loads fewer; with conduction the
+    /// conductivities too, three stores and a table look-up).
+    pub(super) fn for_model(model: &Model, thermal: Option<&ThermalModel>) -> Self {
         let mut lanes = Self::default();
         if model.materials.len() == 1 {
             let material = PairMaterial::of(model, 0, 0);
-            let conductivities = model
-                .thermal
-                .as_ref()
-                .map(|thermal| thermal.pair_conductivities(0, 0));
+            let conductivities = thermal.map(|thermal| thermal.pair_conductivities(0, 0));
             for i in 0..LANES {
                 lanes.set_pair_material::<true, true>(i, &material);
                 if let Some(k) = conductivities {
@@ -728,7 +727,7 @@ impl KernelBench {
             })
             .collect();
         Some(Self {
-            lanes: ContactLanes::for_model(&model),
+            lanes: ContactLanes::for_model(&model, model.thermal.as_ref()),
             model,
             inputs,
             set,
@@ -934,7 +933,7 @@ pub(in crate::forces) mod tests {
             (material.friction.sliding, material.friction.rolling),
             (0.5, 0.1)
         );
-        let mut uniform = ContactLanes::for_model(&model);
+        let mut uniform = ContactLanes::for_model(&model, model.thermal.as_ref());
         assert!(uniform.uniform_material());
         let mut per_contact = ContactLanes::default();
         for (i, mut input) in inputs(LANES).into_iter().enumerate() {
@@ -961,7 +960,7 @@ pub(in crate::forces) mod tests {
         );
         let model = Model::build(&Scene::from_toml(&two).expect("the test's scene")).0;
         assert_eq!(model.materials.len(), 2);
-        assert!(!ContactLanes::for_model(&model).uniform_material());
+        assert!(!ContactLanes::for_model(&model, model.thermal.as_ref()).uniform_material());
     }
 
     /// Every build of the conductance kernel gives bitwise what [`thermal::contact_conductance`]
@@ -1019,6 +1018,68 @@ pub(in crate::forces) mod tests {
                     );
                 }
             }
+        }
+    }
+
+    /// With one material, the lanes take its conductivities from the pass's thermal model once
+    /// and [`ContactLanes::set_conductivities`] leaves them: the conductances are those of the
+    /// material pair (0, 0), whatever a contact would have put.
+    #[test]
+    fn lanes_of_a_one_material_model_hold_its_conductivities() {
+        let model = model();
+        assert_eq!(model.materials.len(), 1);
+        let thermal = ThermalModel {
+            materials: vec![thermal::ThermalMaterial {
+                specific_heat: 500.0,
+                conductivity: 17.0,
+                melting_point: 1700.0,
+                latent_heat: 2.7e5,
+                emissivity: 0.4,
+                absorptivity: 0.6,
+                vaporization: None,
+            }],
+            conduction: ConductionModel::OverlapArea,
+            convection: None,
+            radiation: None,
+            wall_temperatures: Vec::new(),
+            initial_temperature: 300.0,
+            initial_regions: Vec::new(),
+            substep_fraction: 0.5,
+            harmonic_conductivities: Vec::new(),
+        }
+        .tabulated();
+        let k = thermal.pair_conductivities(0, 0);
+        assert_eq!((k.harmonic, k.each), (17.0, [17.0, 17.0]));
+        let set = InstructionSet::detect();
+        let mut lanes = ContactLanes::for_model(&model, Some(&thermal));
+        assert!(lanes.uniform_material());
+        for (i, input) in inputs(LANES).iter().enumerate() {
+            lanes.set::<false, false>(i, input);
+            lanes.set_conductivities(
+                i,
+                PairConductivities {
+                    harmonic: 1.0,
+                    each: [1.0, 1.0],
+                },
+            );
+        }
+        run::<false, false>(set, &model, model.dt, &mut lanes);
+        lanes.run_conductances(set, thermal.conduction);
+        for i in 0..LANES {
+            let out = lanes.output(i);
+            let expected = thermal::pair_conductance(
+                &thermal,
+                [0, 0],
+                lanes.radii(i),
+                out.overlap,
+                out.contact_radius,
+            );
+            assert!(expected > 0.0, "lane {i}");
+            assert_eq!(
+                lanes.conductance(i).to_bits(),
+                expected.to_bits(),
+                "lane {i}"
+            );
         }
     }
 

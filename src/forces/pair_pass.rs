@@ -125,7 +125,8 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         |summary, slab| {
             let targets = &targets.open::<BONDS, FRICTION, HEAT>(slab);
             let reads = ParticleReads::open(particles, omega.filter(|_| FRICTION), slab);
-            let mut batch = Batch::new(model, interval, slab);
+            let thermal = targets.heat.as_ref().map(|h| h.model);
+            let mut batch = Batch::new(model, thermal, interval, slab);
             if slab.records_near() {
                 for window in slab.windows() {
                     sift::<BONDS, FRICTION>(model, reads, targets, &window, near_skin, &mut batch);
@@ -310,14 +311,19 @@ fn recycle<T, U>(mut empty: Vec<T>) -> Vec<U> {
 }
 
 impl<'r, 's> Batch<'r, 's> {
-    /// A batch for the visit of `slab` with `model`'s contacts acting over `interval` \[s\],
-    /// with this thread's buffers.
-    fn new(model: &Model, interval: f64, slab: &'r SlabVisit<'s>) -> Self {
+    /// A batch for the visit of `slab` with `model`'s contacts acting over `interval` \[s\]
+    /// and, with conduction, the pass's `thermal` model; with this thread's buffers.
+    fn new(
+        model: &Model,
+        thermal: Option<&ThermalModel>,
+        interval: f64,
+        slab: &'r SlabVisit<'s>,
+    ) -> Self {
         let buffers = BATCH_BUFFERS.with_borrow_mut(std::mem::take);
         Self {
             slab,
             interval,
-            lanes: ContactLanes::for_model(model),
+            lanes: ContactLanes::for_model(model, thermal),
             pairs: None,
             filled: 0,
             kept: recycle(buffers.kept),
