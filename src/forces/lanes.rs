@@ -1028,8 +1028,8 @@ pub(in crate::forces) mod tests {
     fn lanes_of_a_one_material_model_hold_its_conductivities() {
         let model = model();
         assert_eq!(model.materials.len(), 1);
-        let thermal = ThermalModel {
-            materials: vec![thermal::ThermalMaterial {
+        let thermal = ThermalModel::bare(
+            vec![thermal::ThermalMaterial {
                 specific_heat: 500.0,
                 conductivity: 17.0,
                 melting_point: 1700.0,
@@ -1038,16 +1038,8 @@ pub(in crate::forces) mod tests {
                 absorptivity: 0.6,
                 vaporization: None,
             }],
-            conduction: ConductionModel::OverlapArea,
-            convection: None,
-            radiation: None,
-            wall_temperatures: Vec::new(),
-            initial_temperature: 300.0,
-            initial_regions: Vec::new(),
-            substep_fraction: 0.5,
-            harmonic_conductivities: Vec::new(),
-        }
-        .tabulated();
+            ConductionModel::OverlapArea,
+        );
         let k = thermal.pair_conductivities(0, 0);
         assert_eq!((k.harmonic, k.each), (17.0, [17.0, 17.0]));
         let set = InstructionSet::detect();

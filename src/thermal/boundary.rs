@@ -388,21 +388,18 @@ mod tests {
             },
         ];
         let model = ThermalModel {
-            materials: vec![
-                material(18.0, 0.4, 1700.0),
-                material(200.0, 0.1, 930.0),
-                material(50.0, 0.3, 1800.0),
-            ],
-            conduction,
             convection: surroundings.then_some((10.0, 320.0)),
             radiation: surroundings.then_some(290.0),
             wall_temperatures: vec![Some(300.0), None, Some(900.0)],
-            initial_temperature: 300.0,
-            initial_regions: Vec::new(),
-            substep_fraction: 0.5,
-            harmonic_conductivities: Vec::new(),
-        }
-        .tabulated();
+            ..ThermalModel::bare(
+                vec![
+                    material(18.0, 0.4, 1700.0),
+                    material(200.0, 0.1, 930.0),
+                    material(50.0, 0.3, 1800.0),
+                ],
+                conduction,
+            )
+        };
         (model, walls)
     }
 

@@ -139,6 +139,24 @@ impl ThermalModel {
             .map(|r| r.temperature)
     }
 
+    /// A model of `materials` with `conduction` and nothing else (no convection, radiation,
+    /// held walls or initial regions; 300 K; θ = 0.5), tabulated: what tests start from.
+    #[cfg(test)]
+    pub(crate) fn bare(materials: Vec<ThermalMaterial>, conduction: ConductionModel) -> Self {
+        Self {
+            materials,
+            conduction,
+            convection: None,
+            radiation: None,
+            wall_temperatures: Vec::new(),
+            initial_temperature: 300.0,
+            initial_regions: Vec::new(),
+            substep_fraction: 0.5,
+            harmonic_conductivities: Vec::new(),
+        }
+        .tabulated()
+    }
+
     /// The model with its per-pair tables derived from `materials`; every model is built with
     /// it, since the tables are what the pair pass reads.
     #[must_use]
@@ -928,23 +946,16 @@ mod tests {
             absorptivity: 0.6,
             vaporization,
         };
-        let mut model = ThermalModel {
-            materials: vec![
+        let mut model = ThermalModel::bare(
+            vec![
                 material(None),
                 material(Some(Vaporization {
                     boiling_point: 3090.0,
                     latent_heat: 6.1e6,
                 })),
             ],
-            conduction: ConductionModel::BatchelorObrien,
-            convection: None,
-            radiation: None,
-            wall_temperatures: Vec::new(),
-            initial_temperature: 300.0,
-            initial_regions: Vec::new(),
-            substep_fraction: 0.5,
-            harmonic_conductivities: Vec::new(),
-        };
+            ConductionModel::BatchelorObrien,
+        );
         let mut particles = Particles::default();
         for material in [0, 1, 1, 0] {
             particles.push(
@@ -978,15 +989,10 @@ mod tests {
     #[test]
     fn a_bed_is_inert_only_at_the_temperature_of_all_its_boundaries() {
         let model = ThermalModel {
-            materials: Vec::new(),
-            conduction: ConductionModel::BatchelorObrien,
             convection: Some((10.0, 300.0)),
             radiation: Some(300.0),
             wall_temperatures: vec![None, Some(300.0)],
-            initial_temperature: 300.0,
-            initial_regions: Vec::new(),
-            substep_fraction: 0.5,
-            harmonic_conductivities: Vec::new(),
+            ..ThermalModel::bare(Vec::new(), ConductionModel::BatchelorObrien)
         };
         let state = ThermalState {
             temperature: vec![300.0; 4],
