@@ -572,7 +572,7 @@ impl<const BONDS: bool, const FRICTION: bool, const ROLLING: bool> Kernel
 /// [`thermal::contact_conductance`] over every lane (those past the batch's count hold stale
 /// inputs, whose results nobody reads), one loop per conduction model: the model's `match`
 /// stays outside the lanes, and the overlap-area model's division and square root run on
-/// vectors. Per contact of the 19.2k heat bed, the write-back had spent about 10 instructions on
+/// vectors. Per contact of the 19.2k heat bed, the write-back had spent about 9 instructions on
 /// the `match` (a jump table), 12 on the conductivity table and 30 on the intersection radius.
 struct ConductanceKernel<'a> {
     conduction: ConductionModel,
