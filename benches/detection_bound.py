@@ -3,7 +3,8 @@
 
 Reads the frames of an am-sim run (written every few steps; `benches/detection_bound.sh` makes
 them) and replays the run's motion between them to count, per particle-step, how many pair tests
-three ways of finding the touching pairs need (docs/performance.md, forty-first round):
+four ways of finding the touching pairs need (docs/performance.md, forty-first and forty-sixth
+rounds):
 
 * **the floor**: only the touching pairs, which need their laws anyway, as an oracle would;
 * **near lists** (what am-sim does, `neighbor::NearPairs`): at a refresh every candidate pair of
@@ -17,6 +18,10 @@ three ways of finding the touching pairs need (docs/performance.md, forty-first 
   lengths reaches that threshold (every pair's own bound, not the bed's fastest particle's). Over
   every candidate pair, and inside the near lists of each s (the thresholds restarted at each
   refresh).
+* **the bed's budget in the near lists**: each near entry keeps its gap at the refresh, and is
+  tested only once 2 Σ τ since the refresh (the budget the lists are refreshed by) reaches it.
+  The bound of any skip by the bed's fastest particle: no check per step or per pair counted,
+  just the tests (forty-sixth round).
 
 Between frames the positions are interpolated linearly, one step at a time, and each particle's
 path length is the sum of its steps' displacements, so the bounds above hold exactly for the
@@ -102,8 +107,9 @@ def count_tests(replay, radius, owners, partners, skins):
     """Pair tests of each way, summed over the replay's steps (see the module's docstring).
 
     For each near skin s: (refreshes, near tests, tests with per-entry thresholds in those lists,
-    touching pairs met). An infinite s is every candidate, with its thresholds never restarted:
-    the lists' only refresh is the first, which the candidates' own sift at the build stands for.
+    touching pairs met, tests by the bed's budget in those lists). An infinite s is every
+    candidate, with its thresholds never restarted: the lists' only refresh is the first, which
+    the candidates' own sift at the build stands for.
     Touching pairs are due at every step in every list, so each skin meets the same ones.
     """
     every_pair = np.arange(len(owners))
@@ -111,14 +117,17 @@ def count_tests(replay, radius, owners, partners, skins):
     for skin in skins:
         near = None
         budget = 0.0
-        refreshes = near_tests = threshold_tests = touching = 0
+        refreshes = near_tests = threshold_tests = touching = budget_tests = 0
         for step in range(replay.steps):
             if near is None or budget >= skin:
                 near = every_pair[gaps(replay, step, radius, owners, partners) < skin]
                 threshold = np.full(len(near), -np.inf)
+                gap_then = gaps(replay, step, radius, owners[near], partners[near])
                 budget = 0.0
                 refreshes += 1
             near_tests += len(near)
+            # A pair whose gap at the refresh exceeds the budget since cannot touch yet.
+            budget_tests += int((gap_then <= budget).sum())
             path = replay.path[step]
             due = path[owners[near]] + path[partners[near]] >= threshold
             tested = near[due]
@@ -127,14 +136,14 @@ def count_tests(replay, radius, owners, partners, skins):
             touching += int((gap < 0).sum())
             threshold[due] = path[owners[tested]] + path[partners[tested]] + np.maximum(gap, 0.0)
             budget += 2.0 * replay.largest[step]
-        counts[skin] = (refreshes, near_tests, threshold_tests, touching)
+        counts[skin] = (refreshes, near_tests, threshold_tests, touching, budget_tests)
     return counts
 
 
 def report(counts, particles, candidates, steps, near_cost, candidate_cost, check_cost):
     """Prints `counts` (count_tests, with an infinite skin for every candidate) per particle-step."""
     per = float(particles * steps)
-    _, _, every_candidate_tests, touching = counts[np.inf]
+    _, _, every_candidate_tests, touching, _ = counts[np.inf]
     floor = touching / per
     print(f"{particles} particles, {candidates} candidate pairs ({candidates / particles:.2f} per particle), "
           f"{steps} steps")
@@ -147,16 +156,19 @@ def report(counts, particles, candidates, steps, near_cost, candidate_cost, chec
     print(f"  per-entry thresholds, every candidate:    {tests:.3f} tests, {checks:.2f} checks, "
           f"{near_cost * tests + check_cost * checks:.1f} instructions")
     print("  near skin [m]  refreshes  near tests  candidates tested  instructions"
-          "  | per-entry thresholds in the near lists: tests  instructions")
-    for skin, (refreshes, near_tests, threshold_tests, _) in counts.items():
+          "  | per-entry thresholds in the near lists: tests  instructions"
+          "  | the bed's budget: tests  instructions")
+    for skin, (refreshes, near_tests, threshold_tests, _, budget_tests) in counts.items():
         if skin == np.inf:
             continue
         near = near_tests / per
         full = refreshes * candidates / per
         threshold = threshold_tests / per
+        budget = budget_tests / per
         print(f"  {skin:13.3e}  {refreshes:9d}  {near:10.3f}  {full:17.3f}  "
               f"{near_cost * near + candidate_cost * full:12.1f}  "
-              f"| {threshold:46.3f}  {near_cost * threshold + check_cost * near + candidate_cost * full:12.1f}")
+              f"| {threshold:46.3f}  {near_cost * threshold + check_cost * near + candidate_cost * full:12.1f}"
+              f"  | {budget:23.3f}  {near_cost * budget + candidate_cost * full:12.1f}")
 
 
 def self_test():
@@ -172,7 +184,9 @@ def self_test():
       B-C is near while its gap at a refresh is below 31 u: at t = 0 (2.5 u) and 16 (18.5 u), not
       at 32 (34.5 u); so T + 32 near tests. With thresholds in the lists, B-C is tested at t = 0,
       3, 9 and at the refresh at 16 (thresholds restart), next due at 16 + 18.5 = 34.5, after it
-      has left: T + 4.
+      has left: T + 4. By the bed's budget (2 u per step since the refresh), B-C is tested once
+      2 u k reaches its gap then: at k ≥ 2 after t = 0 (2.5 u; steps 2-15) and k ≥ 10 after t = 16
+      (18.5 u; steps 26-31): T + 20. Every candidate (one refresh): steps 2-99, T + 98.
     - A-C is beyond the Verlet skin (9e-6 m) and is no candidate.
     """
     u = 2.0**-30
@@ -193,7 +207,10 @@ def self_test():
             failures.append(f"frames every {every} steps: the interpolated positions are not the motion's")
         counts = count_tests(replay, radius, owners, partners, [np.inf, 31 * u])
         # Every candidate: one refresh, both pairs' entries at every step (2 T).
-        want = {np.inf: (1, 2 * steps, steps + 6, steps), 31 * u: (7, steps + 32, steps + 4, steps)}
+        want = {
+            np.inf: (1, 2 * steps, steps + 6, steps, steps + 98),
+            31 * u: (7, steps + 32, steps + 4, steps, steps + 20),
+        }
         if counts != want:
             failures.append(f"frames every {every} steps: counted {counts}, want {want}")
     # The periodic image: a pair across the box's edge is found and its gap measured through it.
@@ -206,8 +223,8 @@ def self_test():
     for failure in failures:
         print("self-test FAILED:", failure)
     if not failures:
-        print("self-test passed: closed-form counts of thresholds and near lists, frames every 1 and 5 steps, "
-              "periodic images")
+        print("self-test passed: closed-form counts of thresholds, near lists and the bed's budget, frames "
+              "every 1 and 5 steps, periodic images")
     return 1 if failures else 0
 
 

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # What any contact detection could save on a bed: runs SCENE for STEPS steps with a frame every
 # EVERY steps, then counts with benches/detection_bound.py the pair tests per particle-step of
-# the touching pairs alone (the floor), of am-sim's near lists at several near skins, and of
+# the touching pairs alone (the floor), of am-sim's near lists at several near skins, of
 # per-entry thresholds on each pair's own displacement bound (docs/performance.md, forty-first
-# round). Needs h5py and numpy (scripts/setup --checks installs them).
+# round) and of near entries skipped until the bed's budget reaches their gap at the refresh
+# (forty-sixth round). Needs h5py and numpy (scripts/setup --checks installs them).
 #
 # usage: benches/detection_bound.sh [SCENE] [STEPS] [EVERY] [-- detection_bound.py options]
 #   defaults: scenes/liggghts_bed_20k.toml, 1500 steps, a frame every 5 steps (1.6 GB of frames
