@@ -120,9 +120,10 @@ def count_tests(replay, radius, owners, partners, skins):
         refreshes = near_tests = threshold_tests = touching = budget_tests = 0
         for step in range(replay.steps):
             if near is None or budget >= skin:
-                near = every_pair[gaps(replay, step, radius, owners, partners) < skin]
+                every_gap = gaps(replay, step, radius, owners, partners)
+                near = every_pair[every_gap < skin]
                 threshold = np.full(len(near), -np.inf)
-                gap_then = gaps(replay, step, radius, owners[near], partners[near])
+                gap_then = every_gap[near]
                 budget = 0.0
                 refreshes += 1
             near_tests += len(near)
