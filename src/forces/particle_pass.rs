@@ -101,14 +101,16 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         let outputs = outputs.open(chunk);
         let mut round = WallRound::new(model);
         let mut heat_round = heat.map(|h| HeatRound::new(h, &model.walls));
-        if prefetch {
-            // The chunk's listed particles lie spread over the arrays: their lines are asked
-            // for at once, before the first is reached.
-            for window in chunk.windows() {
-                prefetch_particle(reads, &outputs, window.owner());
-            }
+        // The chunk's listed particles lie spread over the arrays: each particle's lines are
+        // asked for `LISTED_AHEAD` particles before it is reached.
+        let mut ahead = chunk.windows().take(if prefetch { usize::MAX } else { 0 });
+        for window in ahead.by_ref().take(LISTED_AHEAD) {
+            prefetch_particle(reads, &outputs, window.owner());
         }
         for window in chunk.windows() {
+            if let Some(next) = ahead.next() {
+                prefetch_particle(reads, &outputs, next.owner());
+            }
             let particle = window.owner();
             let k = particle.index();
             let (position, radius) = (reads.position.get(particle), reads.radius.get(particle));
@@ -239,6 +241,10 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     particles.dissipated = dissipated;
     summary
 }
+
+/// How many listed particles ahead the particle pass asks for a particle's lines: enough to
+/// cover a miss to memory, few enough that the requests do not queue behind each other.
+const LISTED_AHEAD: usize = 8;
 
 /// Asks the cache for the lines of `particle`'s position, radius, velocity and force, and
 /// with rotation its spin and torque: what its wall contacts read and write. The listed
