@@ -9,7 +9,7 @@
 # steps, 501-5500 (501-2500), by the wall times of its series rows at steps 500 and 5500 (2500),
 # which include its checks at the outputs in that window. Until the forty-eighth round am-sim was
 # timed over its whole run loop of 500 + 5000 steps, warm-up included (its bed holds fewer
-# contacts then than at the window's end): 0.98-1.01 times the window's figure, printed at the
+# contacts then than at the window's end): 0.98-1.05 times the window's figure, printed at the
 # end (docs/performance.md, forty-eighth round).
 #
 # The order of the two programs alternates from repetition to repetition.
