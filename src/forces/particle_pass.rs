@@ -244,8 +244,9 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
 
 /// How many listed particles ahead the particle pass asks for a particle's lines, where it
 /// prefetches: on the 97.2k LIGGGHTS bed at 1 thread, 8 ahead made the step 1.02-1.04 times
-/// faster than asking for all of a chunk's listed particles at once (two sets of 6 alternating
-/// pairs), 16 no faster than 8 and 4 no faster either (docs/performance.md, forty-eighth round).
+/// faster than asking for all of a chunk's listed particles at once (two sets of 6 pairs of runs
+/// at once, `benches/paired.sh`), 16 no faster than 8 and 4 no faster either
+/// (docs/performance.md, forty-eighth round).
 const LISTED_AHEAD: usize = 8;
 
 /// Asks the cache for the lines of `particle`'s position, radius, velocity and force, and
