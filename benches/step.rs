@@ -2,10 +2,11 @@
 //! settling) and of a larger 19k bed built from the same scene, without and with heat conduction
 //! (the cost of the thermal coupling), and the LIGGGHTS benchmark bed (`scenes/liggghts_bed_20k.toml`,
 //! 19,200 frictional spheres after 500 steps), on the default thread pool (set
-//! `RAYON_NUM_THREADS=1` for one thread).
+//! `RAYON_NUM_THREADS=1` for one thread); and the neighbour list's build on that bed.
 //! Run: `cargo bench --bench step`. Reports particle-steps per second as throughput.
 
 use am_sim::model::Model;
+use am_sim::neighbor::NeighborList;
 use am_sim::scene::Scene;
 use am_sim::simulation::Simulation;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -61,6 +62,21 @@ fn bench(c: &mut Criterion) {
     group.throughput(Throughput::Elements(bed.particles.len() as u64));
     group.bench_function("liggghts_bed20k", |b| b.iter(|| bed.step()));
     group.finish();
+    // The neighbour list's build on the same bed, per particle, its particles stored in the
+    // list's order first (`spatial_order`), as every rebuild stores them before it builds.
+    let mut builds = c.benchmark_group("neighbor_build");
+    builds.sample_size(20);
+    let mut list = NeighborList::new(bed.model.skin, bed.model.periodic);
+    let (positions, radii) = (&bed.particles.position, &bed.particles.radius);
+    let order = list.spatial_order(positions, radii, &vec![true; positions.len()]);
+    let positions: Vec<_> = order.iter().map(|&k| positions[k as usize]).collect();
+    let radii: Vec<_> = order.iter().map(|&k| radii[k as usize]).collect();
+    let (positions, radii) = (&positions, &radii);
+    builds.throughput(Throughput::Elements(positions.len() as u64));
+    builds.bench_function("liggghts_bed20k", |b| {
+        b.iter(|| list.build(positions, radii))
+    });
+    builds.finish();
 }
 
 criterion_group!(benches, bench);

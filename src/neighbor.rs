@@ -518,15 +518,19 @@ impl NeighborList {
                 runs.push((key, u32::try_from(i).expect("fewer than 2^32 particles")));
             }
         }
-        let members = |c: [i64; 3]| -> &[u32] {
+        // The members of cell `c`, found from `cursor`, the run where the last search for the
+        // same neighbour offset ended ([`seek_run`]).
+        let members = |c: [i64; 3], cursor: &mut usize| -> &[u32] {
             let key = grid.key(c);
-            match runs.binary_search_by(|(run, _)| run.cmp(&key)) {
-                Ok(pos) => {
-                    let start = runs[pos].1 as usize;
-                    let end = runs.get(pos + 1).map_or(order.len(), |(_, s)| *s as usize);
-                    &order[start..end]
+            *cursor = seek_run(&runs, *cursor, &key);
+            match runs.get(*cursor) {
+                Some((run, start)) if *run == key => {
+                    let end = runs
+                        .get(*cursor + 1)
+                        .map_or(order.len(), |(_, s)| *s as usize);
+                    &order[*start as usize..end]
                 }
-                Err(_) => &[],
+                _ => &[],
             }
         };
 
@@ -544,30 +548,33 @@ impl NeighborList {
         };
         let periodic = self.periodic;
         let skin = self.skin;
+        // The members of cell `c` and of its 26 neighbours, dz, dy, dx from −1 to 1.
+        let neighbourhood = |c: [i64; 3], cursors: &mut [usize; 27]| -> [&[u32]; 27] {
+            let mut cells: [&[u32]; 27] = [&[]; 27];
+            let offsets = (-1..=1)
+                .flat_map(|dz| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dx| [dx, dy, dz])));
+            for ((cell, offset), cursor) in cells.iter_mut().zip(offsets).zip(cursors) {
+                *cell = members(grid.neighbour_cell(c, offset), cursor);
+            }
+            cells
+        };
         // Returns whether a partner lies across a periodic face (its minimum image is not the
         // plain difference of the stored positions).
-        let partners_of = |i: usize, found: &mut Vec<u32>| -> bool {
+        let partners_of = |i: usize, cells: &[&[u32]; 27], found: &mut Vec<u32>| -> bool {
             let start = found.len();
             let mut crossing = false;
-            let c = grid.cell_of(positions[i]);
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        for &j in members(grid.neighbour_cell(c, [dx, dy, dz])) {
-                            let j = j as usize;
-                            if j == i || !owns(i, j) {
-                                continue;
-                            }
-                            let plain = positions[j] - positions[i];
-                            let d = periodic.as_ref().map_or(plain, |p| p.minimum_image(plain));
-                            let cutoff = radii[i] + radii[j] + skin;
-                            if d.length_squared() < cutoff * cutoff {
-                                #[allow(clippy::cast_possible_truncation)]
-                                found.push(j as u32);
-                                crossing |= d != plain;
-                            }
-                        }
-                    }
+            for &j in cells.iter().copied().flatten() {
+                let j = j as usize;
+                if j == i || !owns(i, j) {
+                    continue;
+                }
+                let plain = positions[j] - positions[i];
+                let d = periodic.as_ref().map_or(plain, |p| p.minimum_image(plain));
+                let cutoff = radii[i] + radii[j] + skin;
+                if d.length_squared() < cutoff * cutoff {
+                    #[allow(clippy::cast_possible_truncation)]
+                    found.push(j as u32);
+                    crossing |= d != plain;
                 }
             }
             found[start..].sort_unstable();
@@ -578,9 +585,21 @@ impl NeighborList {
             .into_par_iter()
             .map(|chunk| {
                 let (mut counts, mut crossing, mut found) = (Vec::new(), Vec::new(), Vec::new());
-                for i in chunk * CHUNK..((chunk + 1) * CHUNK).min(n) {
+                // Stored by cell (as every rebuild stores them), consecutive particles mostly
+                // share one: its neighbourhood is found once per cell, not once per particle.
+                // The cells then come in key order, and so do their neighbours at each offset:
+                // each offset's search starts where its last one ended.
+                let mut last: Option<([i64; 3], [&[u32]; 27])> = None;
+                let mut cursors = [0; 27];
+                let owners = chunk * CHUNK..((chunk + 1) * CHUNK).min(n);
+                for (i, &x) in owners.clone().zip(&positions[owners]) {
+                    let c = grid.cell_of(x);
+                    let cells = match last {
+                        Some((cell, cells)) if cell == c => cells,
+                        _ => last.insert((c, neighbourhood(c, &mut cursors))).1,
+                    };
                     let before = found.len();
-                    crossing.push(partners_of(i, &mut found));
+                    crossing.push(partners_of(i, &cells, &mut found));
                     counts.push(u32::try_from(found.len() - before).expect("< 2^32 pairs"));
                 }
                 (counts, crossing, found)
@@ -996,6 +1015,27 @@ fn slabs(grid: &Grid, positions: &[DVec3]) -> (Vec<u32>, u32) {
     )
 }
 
+/// The position in `runs` (sorted by key) of the first run whose key is not below `key`,
+/// searched from `from`, where the search for a nearby key ended: forward by doubling steps
+/// (galloping), then by halving; from the start if `key` lies before `from` (a wrap of a
+/// periodic axis). A neighbour list's build asks for each particle's 27 neighbour cells in the
+/// particles' cell order: from the last position the next is a few runs on, found in a few
+/// predictable steps where a search of all runs took about 14 mispredicted ones.
+fn seek_run(runs: &[([i64; 3], u32)], from: usize, key: &[i64; 3]) -> usize {
+    let before = |at: usize| runs.get(at).is_some_and(|(run, _)| run < key);
+    if from > 0 && !before(from - 1) {
+        return runs.partition_point(|(run, _)| run < key);
+    }
+    let (mut low, mut step) = (from, 1);
+    while before(low + step - 1) {
+        low += step;
+        step *= 2;
+    }
+    // The first run not below `key` lies in low..low + step.
+    let high = (low + step).min(runs.len());
+    low + runs[low..high].partition_point(|(run, _)| run < key)
+}
+
 /// The colour phases: even slabs, then odd slabs; on a wrapping axis with an odd count (three
 /// slabs: see [`Grid::new`]) the last slab (an even one, whose successor is slab 0) runs alone in a
 /// third phase.
@@ -1139,6 +1179,28 @@ mod tests {
             }
         }
         assert!(visited.iter().all(|v| *v == 1), "every particle once");
+    }
+
+    #[test]
+    fn a_run_is_sought_from_anywhere_as_a_search_of_all_runs_finds_it() {
+        // Sorted keys with gaps and repeats of the first two components, as cells' keys are.
+        let mut rng = SplitMix64(7);
+        #[allow(clippy::cast_possible_wrap)]
+        let mut below = |n: u64| (rng.next_u64() % n) as i64;
+        let mut runs: Vec<([i64; 3], u32)> = (0..300)
+            .map(|k| ([below(4), below(5), below(9)], k))
+            .collect();
+        runs.sort_unstable();
+        runs.dedup_by_key(|(key, _)| *key);
+        for from in 0..=runs.len() {
+            for a in -1..5 {
+                for c in -1..10 {
+                    let key = [a, 2, c];
+                    let expected = runs.partition_point(|(run, _)| *run < key);
+                    assert_eq!(seek_run(&runs, from, &key), expected, "{key:?} from {from}");
+                }
+            }
+        }
     }
 
     #[test]
