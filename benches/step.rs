@@ -67,14 +67,12 @@ fn bench(c: &mut Criterion) {
     let mut builds = c.benchmark_group("neighbor_build");
     builds.sample_size(20);
     let mut list = NeighborList::new(bed.model.skin, bed.model.periodic);
-    let (positions, radii) = (&bed.particles.position, &bed.particles.radius);
-    let order = list.spatial_order(positions, radii, &vec![true; positions.len()]);
-    let positions: Vec<_> = order.iter().map(|&k| positions[k as usize]).collect();
-    let radii: Vec<_> = order.iter().map(|&k| radii[k as usize]).collect();
-    let (positions, radii) = (&positions, &radii);
-    builds.throughput(Throughput::Elements(positions.len() as u64));
+    let mut stored = bed.particles.clone();
+    let order = list.spatial_order(&stored.position, &stored.radius, &vec![true; stored.len()]);
+    stored.select(&order);
+    builds.throughput(Throughput::Elements(stored.len() as u64));
     builds.bench_function("liggghts_bed20k", |b| {
-        b.iter(|| list.build(positions, radii))
+        b.iter(|| list.build(&stored.position, &stored.radius))
     });
     builds.finish();
 }
