@@ -288,23 +288,32 @@ pub fn first_non_finite_vector(vectors: &[DVec3]) -> Option<usize> {
         crate::worth_parallel(vectors.len()),
         None,
         lowest_particle,
-        |first, chunk| {
-            let mut finite = true;
-            dispatch(
-                InstructionSet::detect(),
-                FiniteVectors {
-                    vectors: chunk,
-                    finite: &mut finite,
-                },
-            );
-            first_non_finite_in(first, chunk, finite)
-        },
+        first_non_finite_of,
     )
+}
+
+/// The lowest particle whose vector in `vectors` is NaN or infinite, if any, where `vectors`
+/// are those of the particles from `first` on: the test of one chunk, by a vector kernel over
+/// the components and a search of the chunk only if it holds one. [`first_non_finite_vector`]
+/// runs it on every chunk, the particle pass on each of its chunks' finished forces
+/// (`forces::ForceSummary::first_non_finite_force`).
+#[must_use]
+pub fn first_non_finite_of(first: usize, vectors: &[DVec3]) -> Option<usize> {
+    let mut finite = true;
+    dispatch(
+        InstructionSet::detect(),
+        FiniteVectors {
+            vectors,
+            finite: &mut finite,
+        },
+    );
+    first_non_finite_in(first, vectors, finite)
 }
 
 /// The lower of two particles, either of which may be absent: how the chunks' findings of a
 /// non-finite force merge.
-fn lowest_particle(a: Option<usize>, b: Option<usize>) -> Option<usize> {
+#[must_use]
+pub fn lowest_particle(a: Option<usize>, b: Option<usize>) -> Option<usize> {
     match (a, b) {
         (Some(a), Some(b)) => Some(a.min(b)),
         (a, b) => a.or(b),

@@ -799,6 +799,33 @@ impl<'v, T: Copy> Opened<'_, 'v, T, PerParticle> {
     }
 }
 
+impl<'v, T> Opened<'_, 'v, T, PerParticle> {
+    /// `inspect(elements, argument)` on the elements of every particle in `chunk`'s range (the
+    /// listed ones and those between them), as one slice: what a pass over particles tests at
+    /// the end of a chunk (the particle pass's test of the finished forces for NaN and
+    /// infinities, `forces::particle_pass`). A function and a `'static` argument, not a closure,
+    /// as for [`Opened::update_own`]: `inspect` cannot reach this scatter, so nothing writes the
+    /// elements while the slice lives.
+    #[inline]
+    pub fn inspect_chunk<A: 'static, R>(
+        &self,
+        chunk: &ParticleChunk<'v>,
+        inspect: fn(&[T], A) -> R,
+        argument: A,
+    ) -> R {
+        let range = chunk.range.clone();
+        // SAFETY: the brand `'v` is fresh for each chunk's visit (`for_each_chunk`), so this
+        // scatter was opened for `chunk` ([`Scatter::open_chunk`]), whose check of the length
+        // covers `range` (it lies below the pass's count). No other thread reaches a particle of
+        // the range: the chunks' ranges are disjoint and each is visited by one thread, which
+        // neither the chunk nor its windows can leave. On this thread, `inspect` cannot write
+        // through this scatter or another token while the slice lives (see above).
+        let elements =
+            unsafe { std::slice::from_raw_parts(self.start.add(range.start), range.len()) };
+        inspect(elements, argument)
+    }
+}
+
 /// A hint to the processor to bring the cache line at `address` into its first-level cache, so
 /// that a read or write of it that comes later does not wait on memory. A prefetch changes no
 /// value the program sees and cannot fault, whatever the address; on a processor other than
@@ -995,7 +1022,7 @@ where
     let chunk = |mut partial: R, c: usize, state: &mut S| {
         let range = c * chunk_len..((c + 1) * chunk_len).min(count);
         let particles = match listed {
-            None => ChunkParticles::Range(range),
+            None => ChunkParticles::Range(range.clone()),
             Some(listed) => {
                 let first = listed.partition_point(|&k| (k as usize) < range.start);
                 let end = listed.partition_point(|&k| (k as usize) < range.end);
@@ -1004,6 +1031,7 @@ where
         };
         let chunk = ParticleChunk {
             particles,
+            range,
             count,
             brand: PhantomData,
             thread: PhantomData,
@@ -1026,6 +1054,8 @@ where
 #[derive(Debug)]
 pub struct ParticleChunk<'a> {
     particles: ChunkParticles<'a>,
+    /// Every particle of the chunk's range, listed or not: no other chunk reaches them.
+    range: Range<usize>,
     /// The pass's particle count: every particle of the chunk lies below it.
     count: usize,
     brand: Brand<'a>,
@@ -1040,6 +1070,14 @@ enum ChunkParticles<'a> {
 }
 
 impl<'a> ParticleChunk<'a> {
+    /// The chunk's range of particles: those it hands out windows for lie in it (all of them,
+    /// unless the pass lists its particles).
+    #[must_use]
+    #[inline]
+    pub fn range(&self) -> Range<usize> {
+        self.range.clone()
+    }
+
     /// A window for each of the chunk's particles, in ascending order.
     pub fn windows(&self) -> impl Iterator<Item = Window<'a>> + '_ {
         let (range, listed) = match &self.particles {

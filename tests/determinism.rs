@@ -216,3 +216,45 @@ fn advance_stops_when_told() {
     assert_eq!(done, 5);
     assert_eq!(sim.step, 5);
 }
+
+/// A force that turns NaN or infinite ends a call of `advance` after that very step, with its
+/// closing kick given, and the guard names the same particle as step-by-step runs do. One
+/// sphere of the column is thrown at the floor at 1e307 m/s: its first drift takes it about
+/// 5e301 m into the floor, whose Hertz force overflows. The overlap guard is switched off
+/// (`max_overlap_ratio` infinite), so that only the test of the forces can stop the call.
+#[test]
+fn advance_stops_after_the_step_whose_force_is_not_finite() {
+    let text = common::scene_text("column.toml").replace("duration_s = 0.1", "duration_s = 0.001");
+    let thrown = |sim: &mut Simulation| {
+        sim.model.guards.max_overlap_ratio = f64::INFINITY;
+        // The step ends with a finite state; the sphere is chosen in the middle of the arrays.
+        let k = sim.particles.len() / 2 + 7;
+        sim.particles.velocity[k] = glam::DVec3::new(0.0, 0.0, -1e307);
+        sim.particles.id[k]
+    };
+    let (mut in_calls, mut by_step) = (common::simulation(&text), common::simulation(&text));
+    for _ in 0..3 {
+        assert_eq!(in_calls.advance(3, || true), 3);
+        by_step.step();
+        by_step.step();
+        by_step.step();
+    }
+    let id = thrown(&mut in_calls);
+    assert_eq!(thrown(&mut by_step), id);
+    assert_eq!(
+        in_calls.advance(50, || true),
+        1,
+        "the call ends after the step"
+    );
+    by_step.step();
+    assert_eq!((in_calls.step, by_step.step), (10, 10));
+    for sim in [&in_calls, &by_step] {
+        let trip = sim.guard_trip().expect("the guard trips");
+        assert!(trip.quantity.contains("non-finite"), "{}", trip.quantity);
+        assert_eq!(trip.ids, [id]);
+    }
+    assert_eq!(
+        common::position_velocity_bits(&in_calls),
+        common::position_velocity_bits(&by_step)
+    );
+}

@@ -1,9 +1,10 @@
 //! The particle pass: what each particle adds on its own after the pair pass (gravity is set by
 //! the drift): its wall contacts (normal, and with rotation tangential and rolling), with
-//! `[thermal]` its boundary heat and laser power, and the wall overlaps for the run's guard.
-//! Parallel over chunks of particles, each particle writing only its own entries, through
-//! accessors opened once per chunk. A chunk's wall contacts fill lanes of 16, whose laws run
-//! vectorised ([`super::wall_lanes`]); each lane names its particle and wall, a particle's walls
+//! `[thermal]` its boundary heat and laser power, and the wall overlaps for the run's guard;
+//! then it tests each chunk's finished forces for NaN and infinities (the guard's other input,
+//! [`ForceSummary::first_non_finite_force`]). Parallel over chunks of particles, each particle
+//! writing only its own entries, through accessors opened once per chunk. A chunk's wall
+//! contacts fill lanes of 16, whose laws run vectorised ([`super::wall_lanes`]); each lane names its particle and wall, a particle's walls
 //! fill consecutive lanes, and the write-back sums them in wall order ([`WallRound`]). A
 //! particle whose wall spring lets go (it left a wall) takes its walls one after the other
 //! instead, so that the energy the spring held is summed in the same order. Its boundary heat
@@ -25,7 +26,8 @@ use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
 /// The particle pass: the wall contacts (normal, and with rotation tangential and rolling),
 /// boundary heat and laser power, and the wall overlaps for the guard, over every particle or
 /// the `listed` ones (ascending; they must include every particle that touches a wall or holds a
-/// wall spring). Each particle writes only its own entries. Compiled for one combination of
+/// wall spring); then the finished forces of every particle, listed or not, tested for NaN and
+/// infinities. Each particle writes only its own entries. Compiled for one combination of
 /// optional physics: rotation with the wall springs (`ROTATION`) and conduction (`HEAT`); what
 /// it leaves out is ignored even if given.
 #[allow(clippy::too_many_lines)]
@@ -222,6 +224,15 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
             heat_round.finish(h, set, summary);
         }
+        // The chunk's forces are finished (the walls were the last to add): every particle of
+        // its range is tested, listed or not, while the chunk is at hand.
+        let found = outputs.force.inspect_chunk(
+            chunk,
+            |forces, first| crate::integrate::first_non_finite_of(first, forces),
+            chunk.range().start,
+        );
+        summary.first_non_finite_force =
+            crate::integrate::lowest_particle(summary.first_non_finite_force, found);
     };
     let summary = scatter::for_each_chunk(
         count,

@@ -752,9 +752,11 @@ impl Simulation {
     /// the velocities, forces, spins and torques fewer per step (4.5 % of the 19.2k LIGGGHTS
     /// bed's step). The state between the steps of one call is therefore never seen; every
     /// call returns with its last step complete. Before a step's kick is left to the next pass
-    /// its forces are tested for NaN and infinities (the test the closing kick makes): a
-    /// non-finite force ends the call with that step's closing kick given alone, as `step`
-    /// gives it, so that the guard names the same step and particle.
+    /// its forces are tested for NaN and infinities (the test the closing kick makes; the
+    /// particle pass makes it on each chunk's finished forces,
+    /// [`ForceSummary::first_non_finite_force`]): a non-finite force ends the call with that
+    /// step's closing kick given alone, as `step` gives it, so that the guard names the same
+    /// step and particle.
     pub fn advance(&mut self, count: u64, keep_going: impl Fn() -> bool) -> u64 {
         let dt = self.model.dt;
         let mut opening = integrate::Opening::AfterStep;
@@ -768,7 +770,7 @@ impl Simulation {
             let time = self.step as f64 * dt; // no accumulated round-off over millions of steps
             self.time = time;
             let last = done == count || self.guard_trip().is_some() || !keep_going();
-            if last || integrate::first_non_finite_vector(&self.particles.force).is_some() {
+            if last || self.force_summary.first_non_finite_force.is_some() {
                 self.non_finite_force =
                     integrate::kick(&mut self.particles, self.rotation.as_mut(), dt);
                 return done;
