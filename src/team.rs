@@ -178,6 +178,11 @@ impl Team {
                         std::thread::yield_now();
                     }
                 }
+                if std::thread::panicking() {
+                    // The caller's own panic goes on; a member's panic in the same job must not
+                    // fail the next job.
+                    self.0.panicked.store(false, Ordering::Release);
+                }
             }
         }
         let wait = Wait(shared);
@@ -664,5 +669,25 @@ mod tests {
             done.fetch_add(1, Ordering::Relaxed);
         });
         assert_eq!(done.load(Ordering::Relaxed), 4);
+    }
+
+    /// When the caller and a member both panic in one job, the caller's panic goes on and the
+    /// member's is not carried into the next job, which succeeds.
+    #[test]
+    fn a_job_after_one_where_every_member_panicked_succeeds() {
+        let team = Team::new(2);
+        let outcome = catch_unwind(AssertUnwindSafe(|| {
+            team.run(&|member| panic!("member {member} fails"));
+        }));
+        let message = outcome.expect_err("the job panicked");
+        assert_eq!(
+            message.downcast_ref::<String>().map(String::as_str),
+            Some("member 0 fails")
+        );
+        let done = AtomicUsize::new(0);
+        team.run(&|_| {
+            done.fetch_add(1, Ordering::Relaxed);
+        });
+        assert_eq!(done.load(Ordering::Relaxed), 2);
     }
 }
