@@ -385,7 +385,10 @@ impl Grid {
     fn neighbour_cell(&self, c: [i64; 3], offset: [i64; 3]) -> [i64; 3] {
         let mut n = [0i64; 3];
         for axis in 0..3 {
-            let shifted = c[axis] + offset[axis];
+            // Saturating: a particle flung to an absurd place (1e301 m, by a blow-up that the
+            // force pass's guards then report) sits in a cell at the end of the index range,
+            // and its neighbours' indices must not overflow there.
+            let shifted = c[axis].saturating_add(offset[axis]);
             n[axis] = self.axes[axis]
                 .2
                 .map_or(shifted, |count| shifted.rem_euclid(count));
