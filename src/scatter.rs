@@ -824,6 +824,29 @@ impl<'v, T> Opened<'_, 'v, T, PerParticle> {
             unsafe { std::slice::from_raw_parts(self.start.add(range.start), range.len()) };
         inspect(elements, argument)
     }
+
+    /// As [`Opened::inspect_chunk`], with the elements of the chunk's range of another
+    /// per-particle array, `beside`, which the pass only reads (heat capacities beside the heat
+    /// sums, say). Its elements are plain values (`Copy`, `'static`: no reference that could
+    /// reach this scatter).
+    ///
+    /// # Panics
+    /// If `beside` is shorter than the chunk's range reaches.
+    #[inline]
+    pub fn inspect_chunk_beside<U: Copy + 'static, R>(
+        &self,
+        chunk: &ParticleChunk<'v>,
+        beside: &[U],
+        inspect: fn(&[T], &[U]) -> R,
+    ) -> R {
+        let range = chunk.range();
+        let beside = &beside[range.clone()];
+        // SAFETY: as in `inspect_chunk`; `beside` is another array, read only, whose plain
+        // values cannot lead `inspect` to this scatter.
+        let elements =
+            unsafe { std::slice::from_raw_parts(self.start.add(range.start), range.len()) };
+        inspect(elements, beside)
+    }
 }
 
 /// A hint to the processor to bring the cache line at `address` into its first-level cache, so

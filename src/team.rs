@@ -323,21 +323,32 @@ pub fn largest<A: Sync, B: Sync, F: Fn(&A, &B) -> f64 + Sync>(
         parallel,
         items,
         || 0.0,
-        |largest: f64, _, (a, b)| {
-            let mut lanes = simd::Largest::new(largest);
-            simd::dispatch(
-                set,
-                LargestOf {
-                    a,
-                    b,
-                    value: &value,
-                    lanes: &mut lanes,
-                },
-            );
-            lanes.value()
-        },
+        |largest: f64, _, (a, b)| largest_in(set, largest, (a, b), &value),
         f64::max,
     )
+}
+
+/// The largest of `start` and the values `value(a[k], b[k])` over two slices of one item or
+/// chunk, on the calling thread, as [`largest`] takes each item's.
+#[inline]
+pub(crate) fn largest_in<A, B, F: Fn(&A, &B) -> f64>(
+    set: simd::InstructionSet,
+    start: f64,
+    (a, b): (&[A], &[B]),
+    value: &F,
+) -> f64 {
+    assert_eq!(a.len(), b.len(), "one value of each slice per particle");
+    let mut lanes = simd::Largest::new(start);
+    simd::dispatch(
+        set,
+        LargestOf {
+            a,
+            b,
+            value,
+            lanes: &mut lanes,
+        },
+    );
+    lanes.value()
 }
 
 /// Particles per block of [`LargestOf`]: the block's values stay in the first-level cache.

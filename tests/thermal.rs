@@ -316,21 +316,29 @@ fn stiff_pair(stiffness: f64) {
     }
 }
 
+/// The column scene with its lattice's upper corner at `max_corner` [m], run for `duration`
+/// [s], with heat conducted through the contacts only (no walls, gas or surroundings exchange
+/// any). A copper-like conductivity makes the contact time constants (~0.1 s) short enough for
+/// heat to spread visibly within half a second.
+fn conducting_column(max_corner: &str, duration: &str) -> String {
+    common::scene_text("column.toml")
+        .replace(
+            "max_corner_m = [0.0220, 0.0220, 0.0440]",
+            &format!("max_corner_m = {max_corner}"),
+        )
+        .replace("duration_s = 0.1", &format!("duration_s = {duration}"))
+        .replace(
+            "poisson_ratio = 0.3",
+            "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 800\nthermal_conductivity_w_m_k = 400\nmelting_point_k = 1900",
+        )
+        .replace("[output]", "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n[output]")
+}
+
 #[test]
 fn an_isolated_bed_conserves_its_heat() {
     // 1000 spheres settled in an adiabatic box with a vertical temperature gradient: conduction
     // only moves heat around. 1e5 steps; each step adds round-off of ~1e-16 of the total.
-    let text = common::scene_text("column.toml");
-    let text = text
-        .replace("max_corner_m = [0.0220, 0.0220, 0.0440]", "max_corner_m = [0.0220, 0.0220, 0.0220]")
-        .replace("duration_s = 0.1", "duration_s = 0.5")
-        .replace(
-            "poisson_ratio = 0.3",
-            // A copper-like conductivity makes the contact time constants (~0.1 s) short enough
-            // for heat to spread visibly within the 0.5 s run.
-            "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 800\nthermal_conductivity_w_m_k = 400\nmelting_point_k = 1900",
-        )
-        .replace("[output]", "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n[output]");
+    let text = conducting_column("[0.0220, 0.0220, 0.0220]", "0.5");
     let mut sim = common::simulation(&text);
     assert_eq!(sim.particles.len(), 1000);
     for k in 0..1000 {
@@ -365,6 +373,36 @@ fn an_isolated_bed_conserves_its_heat() {
     // moved (some 1e5 round-offs of ε E_i per particle, far below 1e-10 of it). Taken as the
     // difference of two bed totals (as the run computed it before), it read about 1 here.
     assert!(t.heat_residual.abs() < 1e-10, "{}", t.heat_residual);
+}
+
+/// The force pass's largest `G_i / C_i` (M.49), which sets the thermal substeps, is the
+/// largest over every particle when heat flows only through contacts: the particle pass then
+/// visits only the spheres near a wall, and takes the others' rates from their chunks' sums.
+/// A packed cube of 1000 spheres in the column's box, each pressed a little into its six
+/// neighbours: the inner ones hold the most contacts, and none of them is near a wall. The run's
+/// ratio dt · max G/C must equal dt over the smallest time constant computed afresh from the
+/// state (`Simulation::smallest_thermal_time_constant`), to rounding (the two sum a particle's
+/// conductances in other orders).
+#[test]
+fn the_largest_heat_rate_of_a_step_is_that_of_every_particle() {
+    let text = conducting_column("[0.0200, 0.0200, 0.0200]", "1e-4")
+        .replace("spacing_m = 2.2e-3", "spacing_m = 1.99e-3")
+        .replace("jitter_m = 9e-5", "jitter_m = 0.0");
+    let mut sim = common::simulation(&text);
+    assert_eq!(sim.particles.len(), 1000);
+    for _ in 0..5 {
+        sim.step();
+    }
+    let d = sim.diagnostics();
+    assert!(d.contacts > 2500, "{} contacts", d.contacts);
+    let ratio = d.thermal.expect("[thermal]").time_step_ratio;
+    let tau = sim.smallest_thermal_time_constant().expect("[thermal]");
+    let expected = sim.model.dt / tau;
+    assert!(expected > 0.0);
+    assert!(
+        (ratio / expected - 1.0).abs() < 1e-12,
+        "{ratio:e} against dt/tau {expected:e}"
+    );
 }
 
 /// Standard deviation of the temperatures [K].

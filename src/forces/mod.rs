@@ -31,7 +31,7 @@ use crate::pair_history::TangentialHistories;
 use crate::particles::{Particles, Rotation};
 use crate::periodic::Periodic;
 use crate::scatter::{OpenedReads, ParticleTokens, Scatter};
-use crate::thermal::{self, HeatSums, ThermalModel};
+use crate::thermal::{HeatSums, ThermalModel};
 
 mod lanes;
 mod pair_pass;
@@ -464,14 +464,12 @@ pub fn compute(
     particles.dissipated = dissipated;
     // Only the particles that may touch a wall have anything to add, unless heat comes from a
     // laser or is exchanged with the walls, gas or surroundings: then every particle has. With
-    // heat, the largest G_i / C_i of all is then taken from the sums as they stand.
+    // heat, the particle pass then takes the largest G_i / C_i of every chunk's particles from
+    // their sums as they stand.
     let every_particle = heat
         .as_ref()
         .is_some_and(|h| h.laser_power.is_some() || h.model.has_boundary_exchange());
     let listed = (!every_particle).then_some(walls.particles.as_slice());
-    let heat_rate = heat.as_ref().filter(|_| listed.is_some()).map_or(0.0, |h| {
-        thermal::max_heat_rate(h.sums, h.heat_capacity, parallel)
-    });
     // As for the pair pass: one compiled particle pass per combination of optional physics.
     let own = match (rotation.is_some(), heat.is_some()) {
         (false, false) => particle_pass::run::<false, false>(
@@ -487,9 +485,7 @@ pub fn compute(
             model, interval, particles, rotation, heat, listed, parallel,
         ),
     };
-    let mut summary = pairs.merge(own);
-    summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
-    summary
+    pairs.merge(own)
 }
 
 /// Sets each particle's force to its weight `m g` \[N\], the force the contacts add to.

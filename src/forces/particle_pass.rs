@@ -224,6 +224,16 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
             heat_round.finish(h, set, summary);
         }
+        // With heat and listed particles, the others' G_i / C_i (M.49) from their sums as the
+        // pair pass left them (those listed took theirs in `finish_particle`).
+        if let Some(h) = heat.filter(|_| listed.is_some()) {
+            let rate = h.sums.open_chunk(chunk).inspect_chunk_beside(
+                chunk,
+                h.heat_capacity,
+                crate::thermal::max_heat_rate,
+            );
+            summary.max_heat_rate = summary.max_heat_rate.max(rate);
+        }
         // The chunk's forces are finished (the walls were the last to add): every particle of
         // its range is tested, listed or not, while the chunk is at hand.
         let found = outputs.force.inspect_chunk(

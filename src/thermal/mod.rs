@@ -616,10 +616,18 @@ pub fn max_stiffness(
 }
 
 /// Largest `G_i / C_i` [1/s] (M.49) of the total conductances `G_i` [W/K] and heat capacities
-/// `C_i` [J/K] as they stand (0 without particles).
+/// `C_i` [J/K] as they stand (0 without particles), on the calling thread, in the widest vector
+/// build: the particle pass takes it over each chunk's particles.
 #[must_use]
-pub fn max_heat_rate(sums: &[HeatSums], heat_capacity: &[f64], parallel: bool) -> f64 {
-    crate::team::largest(parallel, (sums, heat_capacity), |s, c| s.conductance / c)
+pub fn max_heat_rate(sums: &[HeatSums], heat_capacity: &[f64]) -> f64 {
+    let set = crate::simd::InstructionSet::detect();
+    crate::team::largest_in(set, 0.0, (sums, heat_capacity), &heat_rate)
+}
+
+/// A particle's `G_i / C_i` [1/s] (M.49).
+#[inline(always)]
+fn heat_rate(sums: &HeatSums, heat_capacity: &f64) -> f64 {
+    sums.conductance / heat_capacity
 }
 
 /// A chunk's laser and boundary energy accumulators, kept with a laser or boundary exchange.
