@@ -276,10 +276,9 @@ impl KickDrift<'_> {
 
 /// The lowest particle whose vector in `vectors` (a force, a position, a velocity) is NaN or
 /// infinite, if any: a vector kernel over the components, chunk by chunk on the team, and a
-/// search of the chunk that holds one. The test the closing kick makes of the forces ([`kick`]),
-/// for a step whose closing kick is left to the next opening pass (`Simulation::advance`),
-/// which must not run on such forces; and the output's test of the state
-/// ([`first_non_finite`]).
+/// search of the chunk that holds one ([`first_non_finite_of`]): the output's test of the state
+/// ([`first_non_finite`]). (The forces of a step whose closing kick is left to the next opening
+/// pass are tested by the particle pass, chunk by chunk.)
 #[must_use]
 pub fn first_non_finite_vector(vectors: &[DVec3]) -> Option<usize> {
     let chunks: Vec<&[DVec3]> = vectors.chunks(CHUNK).collect();

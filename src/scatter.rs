@@ -813,16 +813,8 @@ impl<'v, T> Opened<'_, 'v, T, PerParticle> {
         inspect: fn(&[T], A) -> R,
         argument: A,
     ) -> R {
-        let range = chunk.range.clone();
-        // SAFETY: the brand `'v` is fresh for each chunk's visit (`for_each_chunk`), so this
-        // scatter was opened for `chunk` ([`Scatter::open_chunk`]), whose check of the length
-        // covers `range` (it lies below the pass's count). No other thread reaches a particle of
-        // the range: the chunks' ranges are disjoint and each is visited by one thread, which
-        // neither the chunk nor its windows can leave. On this thread, `inspect` cannot write
-        // through this scatter or another token while the slice lives (see above).
-        let elements =
-            unsafe { std::slice::from_raw_parts(self.start.add(range.start), range.len()) };
-        inspect(elements, argument)
+        // SAFETY: only `inspect` sees the slice, and it cannot reach this scatter (see above).
+        inspect(unsafe { self.chunk_elements(chunk) }, argument)
     }
 
     /// As [`Opened::inspect_chunk`], with the elements of the chunk's range of another
@@ -839,13 +831,26 @@ impl<'v, T> Opened<'_, 'v, T, PerParticle> {
         beside: &[U],
         inspect: fn(&[T], &[U]) -> R,
     ) -> R {
+        let beside = &beside[chunk.range()];
+        // SAFETY: only `inspect` sees the slice, and neither it nor `beside` (another array,
+        // read only, of plain values) can reach this scatter.
+        inspect(unsafe { self.chunk_elements(chunk) }, beside)
+    }
+
+    /// The elements of every particle in `chunk`'s range, as one slice.
+    ///
+    /// # Safety
+    /// Nothing may write them while the slice lives: the caller hands it only to code that
+    /// cannot reach this scatter or a token of the chunk (a plain function, as above).
+    #[inline]
+    unsafe fn chunk_elements(&self, chunk: &ParticleChunk<'v>) -> &[T] {
         let range = chunk.range();
-        let beside = &beside[range.clone()];
-        // SAFETY: as in `inspect_chunk`; `beside` is another array, read only, whose plain
-        // values cannot lead `inspect` to this scatter.
-        let elements =
-            unsafe { std::slice::from_raw_parts(self.start.add(range.start), range.len()) };
-        inspect(elements, beside)
+        // SAFETY: the brand `'v` is fresh for each chunk's visit (`for_each_chunk`), so this
+        // scatter was opened for `chunk` ([`Scatter::open_chunk`]), whose check of the length
+        // covers `range` (it lies below the pass's count). No other thread reaches a particle of
+        // the range: the chunks' ranges are disjoint and each is visited by one thread, which
+        // neither the chunk nor its windows can leave. On this thread, the caller's contract.
+        unsafe { std::slice::from_raw_parts(self.start.add(range.start), range.len()) }
     }
 }
 

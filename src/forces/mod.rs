@@ -586,7 +586,7 @@ pub struct ForceSummary {
     /// the particle pass tests each chunk's finished forces as its last act, the test the
     /// closing kick makes, for a step whose closing kick is left to the next opening pass
     /// (`Simulation::advance`). (A pass of its own over the forces, as before, made the thread
-    /// team meet once more per step: 3-4 % of a 2-thread step on the 19.2k LIGGGHTS bed.)
+    /// team meet once more per step: 2.5-4 % of a 2-thread step on the 19.2k LIGGGHTS bed.)
     pub first_non_finite_force: Option<usize>,
 }
 

@@ -4,8 +4,9 @@
 //! then it tests each chunk's finished forces for NaN and infinities (the guard's other input,
 //! [`ForceSummary::first_non_finite_force`]). Parallel over chunks of particles, each particle
 //! writing only its own entries, through accessors opened once per chunk. A chunk's wall
-//! contacts fill lanes of 16, whose laws run vectorised ([`super::wall_lanes`]); each lane names its particle and wall, a particle's walls
-//! fill consecutive lanes, and the write-back sums them in wall order ([`WallRound`]). A
+//! contacts fill lanes of 16, whose laws run vectorised ([`super::wall_lanes`]); each lane names
+//! its particle and wall, a particle's walls fill consecutive lanes, and the write-back sums
+//! them in wall order ([`WallRound`]). A
 //! particle whose wall spring lets go (it left a wall) takes its walls one after the other
 //! instead, so that the energy the spring held is summed in the same order. Its boundary heat
 //! fills lanes of its own ([`crate::thermal::BoundaryLanes`], [`HeatRound`]).
@@ -224,8 +225,9 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
             heat_round.finish(h, set, summary);
         }
-        // With heat and listed particles, the others' G_i / C_i (M.49) from their sums as the
-        // pair pass left them (those listed took theirs in `finish_particle`).
+        // With heat and listed particles, the largest G_i / C_i (M.49) of the chunk's range,
+        // from the sums as the pair pass left them: the particles not listed have no other
+        // (the listed ones, whose sums no exchange changed, are taken again).
         if let Some(h) = heat.filter(|_| listed.is_some()) {
             let rate = h.sums.open_chunk(chunk).inspect_chunk_beside(
                 chunk,
