@@ -150,19 +150,25 @@ fn friction_runs_with_different_skins_agree_to_round_off() {
 /// `Simulation::advance` leaves each step's closing half kick to the next step's opening pass
 /// within a call. Runs in calls of irregular sizes (1 to 64 steps, so that calls end at every
 /// phase of the neighbour-list builds and near-list refreshes) must be bitwise the same as
-/// step-by-step runs, at every call's end, for the full coupled step (laser, melting, bonding)
-/// and for friction with rotation.
+/// step-by-step runs, at every call's end, for the full coupled step (laser, melting, bonding,
+/// evaporation), for the same with thermal substeps that change from step to step, and for
+/// friction with rotation.
 #[test]
 fn advance_in_calls_is_bitwise_the_same_as_step_by_step() {
     let laser_track =
         common::scene_text("laser_track.toml").replace("duration_s = 3.5e-3", "duration_s = 6e-4");
+    // The track's steps have dt max(G/C) up to 2.4e-4: with θ = 1.5e-4 the hotter steps take
+    // two substeps and the others one, so that steps of either kind follow each other within
+    // a call (the thermal state the opening pass zeroes must be that of the step before).
+    let substepping = laser_track.replace("[thermal]\n", "[thermal]\nsubstep_fraction = 1.5e-4\n");
+    assert_ne!(substepping, laser_track);
     let column = common::scene_text("column.toml")
         .replace("duration_s = 0.1", "duration_s = 0.005")
         .replace(
             "damping_ratio = 0.3 ",
             "friction_coefficient = 0.5\nrolling_friction_coefficient = 0.05\ndamping_ratio = 0.3 ",
         );
-    for text in [laser_track, column] {
+    for text in [laser_track, substepping, column] {
         // Two simulations made from the text (a clone would record its near lists once more).
         let mut by_step = common::simulation(&text);
         let mut in_calls = common::simulation(&text);
@@ -177,10 +183,25 @@ fn advance_in_calls_is_bitwise_the_same_as_step_by_step() {
                 );
             }
             if let Some(t) = &s.thermal {
-                bits.extend(t.enthalpy.iter().map(|e| e.to_bits()));
+                let evaporated = t.evaporation.iter().flat_map(|e| &e.evaporated);
+                for column in [
+                    &t.enthalpy,
+                    &t.temperature,
+                    &t.laser_energy,
+                    &t.boundary_energy,
+                ]
+                .into_iter()
+                .map(|c| c.iter())
+                {
+                    bits.extend(column.map(|e| e.to_bits()));
+                }
+                bits.extend(evaporated.map(|e| e.to_bits()));
+                bits.extend(t.melted.iter().map(|&m| u64::from(m)));
             }
             bits
         };
+        // The substep counts of the step-by-step run's steps.
+        let mut substeps = std::collections::BTreeSet::new();
         let sizes = [1, 7, 64, 2, 13, 31, 3, 50];
         let mut calls = 0;
         while in_calls.step < in_calls.model.steps {
@@ -188,6 +209,7 @@ fn advance_in_calls_is_bitwise_the_same_as_step_by_step() {
             assert_eq!(in_calls.advance(size, || true), size, "no guard trips here");
             for _ in 0..size {
                 by_step.step();
+                substeps.extend(by_step.thermal.as_ref().map(|t| t.substeps));
             }
             assert_eq!(in_calls.step, by_step.step);
             assert_eq!(
@@ -200,6 +222,18 @@ fn advance_in_calls_is_bitwise_the_same_as_step_by_step() {
         }
         assert_eq!(in_calls.diagnostics(), by_step.diagnostics());
         assert_eq!(in_calls.bonds(), by_step.bonds());
+        if let Some(t) = &in_calls.thermal {
+            eprintln!("substeps per step: {substeps:?}");
+            assert!(t.melted.iter().any(|&m| m), "the track melts particles");
+            let evaporated = t.evaporation.as_ref().expect("the track's steel boils");
+            assert!(
+                evaporated.evaporated.iter().any(|&e| e > 0.0),
+                "and evaporates some"
+            );
+            if text.contains("substep_fraction") {
+                assert!(substeps.contains(&1) && substeps.len() > 1, "{substeps:?}");
+            }
+        }
     }
 }
 
