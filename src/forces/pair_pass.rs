@@ -142,11 +142,11 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                     let entries = slab.near_pairs(start..(start + NEAR_PER_ROUND).min(count));
                     // Two builds of the sift: the test of `prefetch` stays out of its loop.
                     if prefetch {
-                        sift_near::<BONDS, FRICTION, true>(
+                        sift_near::<BONDS, FRICTION, HEAT, true>(
                             model, reads, targets, entries, &mut batch,
                         );
                     } else {
-                        sift_near::<BONDS, FRICTION, false>(
+                        sift_near::<BONDS, FRICTION, HEAT, false>(
                             model, reads, targets, entries, &mut batch,
                         );
                     }
@@ -185,7 +185,13 @@ const SIFT_AHEAD: usize = 16;
 /// entry to entry here, so its position is loaded each time (it is in cache: the entries come
 /// owner by owner).
 #[inline(always)]
-fn sift_near<'s, const BONDS: bool, const FRICTION: bool, const PREFETCH: bool>(
+fn sift_near<
+    's,
+    const BONDS: bool,
+    const FRICTION: bool,
+    const HEAT: bool,
+    const PREFETCH: bool,
+>(
     model: &Model,
     reads: ParticleReads<'_, 's>,
     targets: &OpenTargets<'_, 's>,
@@ -217,7 +223,7 @@ fn sift_near<'s, const BONDS: bool, const FRICTION: bool, const PREFETCH: bool>(
     } in entries
     {
         if PREFETCH {
-            prefetch_partner::<FRICTION>(reads, targets, partner);
+            prefetch_partner::<FRICTION, HEAT>(reads, targets, partner);
             if let Some(next) = ahead.next() {
                 reads.position.prefetch(next.partner);
                 reads.radius.prefetch(next.partner);
@@ -675,16 +681,18 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
 }
 
 /// Asks for the partners' lines the fill and the write-back of `kept` will read and write,
-/// ahead of them: velocity and mass, force and lost energy, and with `FRICTION` spin and torque.
-/// The sift read the partners' positions and radii; these lines it did not. With every datum in
-/// the cache a prefetch costs an instruction; on a bed larger than the cache a partner's lines
-/// are otherwise missed one contact after the other (docs/performance.md, thirty-fourth round).
-/// The lost energy and the torque, which the write-back adds to, were left out at first: asking
-/// for them too made the 97.2k bed 1.07 times faster again at 1 thread on a Zen 3 host (1.045
-/// with heat; the partner's temperature and heat sums, asked for too, gained nothing:
-/// thirty-fifth round).
+/// ahead of them: velocity and mass, force and lost energy, with `FRICTION` spin and torque,
+/// and with `HEAT` temperature and heat sums. The sift read the partners' positions and radii;
+/// these lines it did not. With every datum in the cache a prefetch costs an instruction; on a
+/// bed larger than the cache a partner's lines are otherwise missed one contact after the other
+/// (docs/performance.md, thirty-fourth round). The lost energy and the torque, which the
+/// write-back adds to, were left out at first: asking for them too made the 97.2k bed 1.07
+/// times faster again at 1 thread on a Zen 3 host (1.045 with heat; thirty-fifth round). The
+/// temperature and heat sums gained nothing there, but on a Zen 4 host, where 37 % of the
+/// heated write-back's samples waited on them, they made the heated 97.2k bed 1.042 times
+/// faster (fifty-second round).
 #[inline(always)]
-fn prefetch_partner<'s, const FRICTION: bool>(
+fn prefetch_partner<'s, const FRICTION: bool, const HEAT: bool>(
     reads: ParticleReads<'_, 's>,
     targets: &OpenTargets<'_, 's>,
     partner: Member<'s>,
@@ -699,6 +707,12 @@ fn prefetch_partner<'s, const FRICTION: bool>(
         }
         if let Some(torque) = &targets.torque {
             torque.prefetch(partner);
+        }
+    }
+    if HEAT {
+        if let Some(heat) = &targets.heat {
+            heat.temperature.prefetch(partner);
+            heat.sums.prefetch(partner);
         }
     }
 }
