@@ -688,9 +688,10 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
 /// (docs/performance.md, thirty-fourth round). The lost energy and the torque, which the
 /// write-back adds to, were left out at first: asking for them too made the 97.2k bed 1.07
 /// times faster again at 1 thread on a Zen 3 host (1.045 with heat; thirty-fifth round). The
-/// temperature and heat sums gained nothing there, but on a Zen 4 host, where 37 % of the
-/// heated write-back's samples waited on them, they made the heated 97.2k bed 1.042 times
-/// faster (fifty-second round).
+/// temperature and heat sums gained nothing there. On a Zen 4 host, where 37 % of the heated
+/// write-back's samples waited on them, they made the heated 97.2k bed 1.042 times faster by
+/// paired runs (two processes sharing the third-level cache), about 1.0 alone (fifty-second
+/// round).
 #[inline(always)]
 fn prefetch_partner<'s, const FRICTION: bool, const HEAT: bool>(
     reads: ParticleReads<'_, 's>,

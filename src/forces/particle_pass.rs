@@ -105,8 +105,9 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         let mut round = WallRound::new(model);
         // A listed pass (heat without laser or exchange, `forces::compute`) has no heat to add
         // to a particle: its largest G_i / C_i is taken over the chunk's whole range below.
-        // Reading each listed particle's sums here as well cost 3 % of the heated 97.2k bed's
-        // step (they are spread over the arrays, and missed the cache).
+        // (Reading each listed particle's sums here as well, spread over the arrays, held 28 %
+        // of this pass's samples on the heated 97.2k bed: docs/performance.md, fifty-second
+        // round.)
         let mut heat_round = heat
             .filter(|_| listed.is_none())
             .map(|h| HeatRound::new(h, &model.walls));
