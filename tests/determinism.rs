@@ -189,11 +189,8 @@ fn advance_in_calls_is_bitwise_the_same_as_step_by_step() {
                     &t.temperature,
                     &t.laser_energy,
                     &t.boundary_energy,
-                ]
-                .into_iter()
-                .map(|c| c.iter())
-                {
-                    bits.extend(column.map(|e| e.to_bits()));
+                ] {
+                    bits.extend(column.iter().map(|e| e.to_bits()));
                 }
                 bits.extend(evaporated.map(|e| e.to_bits()));
                 bits.extend(t.melted.iter().map(|&m| u64::from(m)));
