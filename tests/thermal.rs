@@ -382,27 +382,35 @@ fn an_isolated_bed_conserves_its_heat() {
 /// neighbours: the inner ones hold the most contacts, and none of them is near a wall. The run's
 /// ratio dt · max G/C must equal dt over the smallest time constant computed afresh from the
 /// state (`Simulation::smallest_thermal_time_constant`), to rounding (the two sum a particle's
-/// conductances in other orders).
+/// conductances in other orders). The same with convection, where the pass visits every
+/// particle and adds its exchange to the sums before the chunk's largest is taken.
 #[test]
 fn the_largest_heat_rate_of_a_step_is_that_of_every_particle() {
-    let text = conducting_column("[0.0200, 0.0200, 0.0200]", "1e-4")
+    let packed = conducting_column("[0.0200, 0.0200, 0.0200]", "1e-4")
         .replace("spacing_m = 2.2e-3", "spacing_m = 1.99e-3")
         .replace("jitter_m = 9e-5", "jitter_m = 0.0");
-    let mut sim = common::simulation(&text);
-    assert_eq!(sim.particles.len(), 1000);
-    for _ in 0..5 {
-        sim.step();
-    }
-    let d = sim.diagnostics();
-    assert!(d.contacts > 2500, "{} contacts", d.contacts);
-    let ratio = d.thermal.expect("[thermal]").time_step_ratio;
-    let tau = sim.smallest_thermal_time_constant().expect("[thermal]");
-    let expected = sim.model.dt / tau;
-    assert!(expected > 0.0);
-    assert!(
-        (ratio / expected - 1.0).abs() < 1e-12,
-        "{ratio:e} against dt/tau {expected:e}"
+    let convected = packed.replace(
+        "[output]",
+        "[thermal.convection]\nheat_transfer_coefficient_w_m2_k = 10\ngas_temperature_k = 300\n[output]",
     );
+    assert_ne!(convected, packed);
+    for text in [packed, convected] {
+        let mut sim = common::simulation(&text);
+        assert_eq!(sim.particles.len(), 1000);
+        for _ in 0..5 {
+            sim.step();
+        }
+        let d = sim.diagnostics();
+        assert!(d.contacts > 2500, "{} contacts", d.contacts);
+        let ratio = d.thermal.expect("[thermal]").time_step_ratio;
+        let tau = sim.smallest_thermal_time_constant().expect("[thermal]");
+        let expected = sim.model.dt / tau;
+        assert!(expected > 0.0);
+        assert!(
+            (ratio / expected - 1.0).abs() < 1e-12,
+            "{ratio:e} against dt/tau {expected:e}"
+        );
+    }
 }
 
 /// Standard deviation of the temperatures [K].

@@ -464,8 +464,8 @@ pub fn compute(
     particles.dissipated = dissipated;
     // Only the particles that may touch a wall have anything to add, unless heat comes from a
     // laser or is exchanged with the walls, gas or surroundings: then every particle has. With
-    // heat, the particle pass then takes the largest G_i / C_i of every chunk's particles from
-    // their sums as they stand.
+    // heat, the particle pass takes the largest G_i / C_i of every chunk's particles, visited or
+    // not, at the chunk's end.
     let every_particle = heat
         .as_ref()
         .is_some_and(|h| h.laser_power.is_some() || h.model.has_boundary_exchange());

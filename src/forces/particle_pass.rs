@@ -224,18 +224,18 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
                 summary.observe_overlap(max_overlap / radius, k);
             }
             if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
-                heat_round.add(h, state, set, particle, summary);
+                heat_round.add(h, state, set, particle);
             }
         }
         round.write_back::<ROTATION>(model, (set, interval), &outputs, springs);
         round.finish(&outputs);
         if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
-            heat_round.finish(h, set, summary);
+            heat_round.finish(h, set);
         }
-        // With heat and listed particles, the largest G_i / C_i (M.49) of the chunk's range,
-        // from the sums as the pair pass left them: the particles not listed have no other
-        // (the listed ones, whose sums no exchange changed, are taken again).
-        if let Some(h) = heat.filter(|_| listed.is_some()) {
+        // With heat, the largest G_i / C_i (M.49) of the chunk's range, from the sums as they
+        // now stand: the pair pass's, and the boundary exchange's where the pass visits every
+        // particle. One vector kernel over the chunk, whichever particles were visited.
+        if let Some(h) = heat {
             let rate = h.sums.open_chunk(chunk).inspect_chunk_beside(
                 chunk,
                 h.heat_capacity,
@@ -316,8 +316,8 @@ struct ParticleHeat<'a> {
 }
 
 /// The heat of a chunk's particles on its way through the boundary kernel: with exchange, the
-/// particles in its lanes; each is finished (its boundary flow, laser power and largest
-/// `G_i / C_i`) once its lane has run. Without exchange each is finished at once.
+/// particles in its lanes; each is finished (its boundary flow and laser power) once its lane
+/// has run. Without exchange each is finished at once.
 struct HeatRound<'c> {
     /// `None` without exchange.
     lanes: Option<BoundaryLanes>,
@@ -340,7 +340,6 @@ impl<'c> HeatRound<'c> {
         state: &Particles,
         set: InstructionSet,
         particle: Member<'c>,
-        summary: &mut ForceSummary,
     ) {
         let k = particle.index();
         match &mut self.lanes {
@@ -354,34 +353,29 @@ impl<'c> HeatRound<'c> {
                 );
                 self.particles.push(particle);
                 if self.particles.len() == LANES {
-                    self.finish(heat, set, summary);
+                    self.finish(heat, set);
                 }
             }
-            None => finish_particle(heat, particle, None, summary),
+            None => finish_particle(heat, particle, None),
         }
     }
 
     /// Runs the boundary kernel over the filled lanes and finishes their particles.
-    fn finish(&mut self, heat: &ParticleHeat<'_>, set: InstructionSet, summary: &mut ForceSummary) {
+    fn finish(&mut self, heat: &ParticleHeat<'_>, set: InstructionSet) {
         let Some(lanes) = self.lanes.as_mut().filter(|_| !self.particles.is_empty()) else {
             return;
         };
         lanes.run(set, heat.model);
         for (i, particle) in self.particles.drain(..).enumerate() {
-            finish_particle(heat, particle, Some(lanes.output(i)), summary);
+            finish_particle(heat, particle, Some(lanes.output(i)));
         }
     }
 }
 
 /// Adds `particle`'s exchange with its boundaries (`outside`: flow \[W\] and conductance
-/// [W/K]) and its laser power to its heat sums, and takes in its `G_i / C_i`.
+/// [W/K]) and its laser power to its heat sums (whose `G_i / C_i` the chunk's end takes).
 #[inline(always)]
-fn finish_particle(
-    heat: &ParticleHeat<'_>,
-    particle: Member<'_>,
-    outside: Option<(f64, f64)>,
-    summary: &mut ForceSummary,
-) {
+fn finish_particle(heat: &ParticleHeat<'_>, particle: Member<'_>, outside: Option<(f64, f64)>) {
     let k = particle.index();
     let mut sums = heat.sums.read(particle);
     if let Some((_, outside_conductance)) = outside {
@@ -401,8 +395,6 @@ fn finish_particle(
     if let Some((outside, _)) = outside {
         heat.boundary_flow.update(particle, |_| outside);
     }
-    let heat_rate = sums.conductance / heat.heat_capacity[k];
-    summary.max_heat_rate = summary.max_heat_rate.max(heat_rate);
 }
 
 /// A particle's `[radius (m), mass (kg)]` and `[velocity (m/s), angular velocity (rad/s)]`
