@@ -910,7 +910,7 @@ fn heat_flows(
         *boundary = outside;
         s.flow += outside + laser_power[k];
         s.conductance += outside_conductance;
-        s.conductance / heat_capacity[k]
+        heat_rate(s, &heat_capacity[k])
     };
     if parallel {
         let out = heat_sums.par_iter_mut().zip(boundary_flow.par_iter_mut());
