@@ -35,6 +35,15 @@ command -v liggghts >/dev/null || { echo "liggghts not found: apt-get install -y
 
 cargo build --release --quiet
 AM_SIM=$(realpath target/release/am-sim)
+# How far apart the host has put the cores (benches/core_latency.rs), read before each run of two
+# threads or more: on the 2-vCPU guests it switches every few minutes between about 60 ns (cores
+# sharing a third-level cache) and about 330 ns (cores of different dies), and am-sim's 2-thread
+# speed with it (docs/performance.md, fifty-third round).
+LATENCY=$(cargo bench --bench core_latency --no-run --message-format=json 2>/dev/null |
+  python3 -c 'import json, sys
+for m in map(json.loads, sys.stdin):
+    if m.get("reason") == "compiler-artifact" and m["target"]["name"] == "core_latency" and m.get("executable"):
+        print(m["executable"])')
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 # The host first: the ratio moves with it (on a Zen 3 without AVX-512 am-sim's contact laws run
@@ -93,13 +102,20 @@ PY
         # Who goes first alternates from repetition to repetition, so that neither program
         # always runs right after the other (on this shared host 2-thread speeds scatter by
         # about ±8 % from one minute to the next: take medians of several repetitions).
+        apart=""
+        if (( t > 1 )); then
+          ns=$("$LATENCY" | awk '{print $4}')
+          echo "$size $heat $t $ns" >> "$WORK/apart.txt"
+          apart=", cores $ns ns apart"
+        fi
         if (( rep % 2 )); then run_liggghts; run_am_sim; else run_am_sim; run_liggghts; fi
-        echo "rep $rep, bed $size, heat $heat, $t thread(s): $(tail -2 "$results" | tr '\n' ' ')"
+        echo "rep $rep, bed $size, heat $heat, $t thread(s)$apart: $(tail -2 "$results" | tr '\n' ' ')"
       done
     done
   done
 done
-python3 - "$results" <<'PY'
+touch "$WORK/apart.txt"
+python3 - "$results" "$WORK/apart.txt" <<'PY'
 import statistics, sys, collections
 runs = collections.defaultdict(list)
 whole = collections.defaultdict(list)  # am-sim's whole run loop over its timed window
@@ -131,6 +147,13 @@ for s, h in sorted({(s, h) for s, h, _ in keys}, key=lambda k: (len(k[0]), k)):
         for prog in ("liggghts", "am-sim"):
             speedup = median((prog, s, h, t1)) * t1 / (median((prog, s, h, t0)) * t0)
             print(f"bed {s}, heat {h}: {prog} {t1} threads vs {t0}: {speedup:.2f}x")
+apart = collections.defaultdict(list)
+for line in open(sys.argv[2]):
+    s, h, t, ns = line.split()
+    apart[(s, int(h), int(t))].append(ns)
+for (s, h, t), readings in sorted(apart.items(), key=lambda k: (len(k[0][0]), k[0])):
+    print(f"bed {s}, heat {h}, {t} threads: cores {', '.join(readings)} ns apart, by the repetition"
+          " (about 60: sharing a cache; about 330: on different dies, where am-sim's threads lose)")
 for s, t in sorted({(s, t) for s, _, t in keys}, key=lambda k: (len(k[0]), k)):
     if (s, 0, t) in keys and (s, 1, t) in keys:
         for prog in ("liggghts", "am-sim"):
