@@ -35,10 +35,11 @@ command -v liggghts >/dev/null || { echo "liggghts not found: apt-get install -y
 
 cargo build --release --quiet
 AM_SIM=$(realpath target/release/am-sim)
-# How far apart the host has put the cores (benches/core_latency.rs), read before each run of two
-# threads or more: on the 2-vCPU guests it switches every few minutes between about 60 ns (cores
-# sharing a third-level cache) and about 330 ns (cores of different dies), and am-sim's 2-thread
-# speed with it (docs/performance.md, fifty-third round).
+# How far apart the host has put the cores (benches/core_latency.rs), read right before each run of
+# two threads or more, of either program: on the 2-vCPU guests it switches every few minutes
+# between about 60-80 ns (cores sharing a third-level cache) and about 330 ns (cores far apart),
+# and the 2-thread speeds with it, am-sim's more than LIGGGHTS' (docs/performance.md, fifty-third
+# round). A reading taken before the pair instead missed switches in the 20 s of LIGGGHTS' run.
 LATENCY=$(cargo bench --bench core_latency --no-run --message-format=json 2>/dev/null |
   python3 -c 'import json, sys
 for m in map(json.loads, sys.stdin):
@@ -76,13 +77,24 @@ for rep in $(seq 1 "$REPS"); do
     if [ "$size" = 20k ]; then N=19200 STEPS=5000; else N=97200 STEPS=2000; fi
     for heat in "${HEATS[@]}"; do
       for t in "${THREADS[@]}"; do
+        # The cores' distance in ns now, before a run of two threads or more (recorded for the
+        # summary); nothing at 1 thread.
+        apart_now() {
+          (( t > 1 )) || return 0
+          local ns
+          ns=$("$LATENCY" | awk '{print $4}')
+          echo "$1 $size $heat $t $ns" >> "$WORK/apart.txt"
+          echo "$ns"
+        }
         run_liggghts() {
+          lig_apart=$(apart_now liggghts)
           (cd "$WORK" && mpirun --allow-run-as-root -np "$t" liggghts -in in.bench -var tag "$size" \
               -var heat "$heat" -var nsteps "$STEPS" -screen none -log lig.log > lig.out)
           loop=$(grep "Loop time" "$WORK"/lig.log | tail -1 | awk '{print $4}')
           echo "liggghts $size $heat $t $(python3 -c "print($N*$STEPS/$loop/$t)")" >> "$results"
         }
         run_am_sim() {
+          am_apart=$(apart_now am-sim)
           (cd "$WORK" && "$AM_SIM" "am_sim_${size}_heat$heat.toml" --threads "$t" --quiet \
               --overwrite > am.log)
           # Particle-steps per second over the steps after the 500-step warm-up, as LIGGGHTS'
@@ -100,16 +112,14 @@ PY
             "(whole loop $(python3 -c "print(f'{$whole/$t:.4g}')"))" >> "$results"
         }
         # Who goes first alternates from repetition to repetition, so that neither program
-        # always runs right after the other (on this shared host 2-thread speeds scatter by
-        # about ±8 % from one minute to the next: take medians of several repetitions).
-        apart=""
-        if (( t > 1 )); then
-          ns=$("$LATENCY" | awk '{print $4}')
-          echo "$size $heat $t $ns" >> "$WORK/apart.txt"
-          apart=", cores $ns ns apart"
-        fi
+        # always runs right after the other (on this shared host 2-thread speeds move with the
+        # cores' placement, read above, from one minute to the next: take medians of several
+        # repetitions, and compare like placements).
         if (( rep % 2 )); then run_liggghts; run_am_sim; else run_am_sim; run_liggghts; fi
-        echo "rep $rep, bed $size, heat $heat, $t thread(s)$apart: $(tail -2 "$results" | tr '\n' ' ')"
+        echo "rep $rep, bed $size, heat $heat, $t thread(s): $(tail -2 "$results" | tr '\n' ' ')"
+        if (( t > 1 )); then
+          echo "  the cores $lig_apart ns apart before LIGGGHTS' run, $am_apart ns before am-sim's"
+        fi
       done
     done
   done
@@ -149,11 +159,11 @@ for s, h in sorted({(s, h) for s, h, _ in keys}, key=lambda k: (len(k[0]), k)):
             print(f"bed {s}, heat {h}: {prog} {t1} threads vs {t0}: {speedup:.2f}x")
 apart = collections.defaultdict(list)
 for line in open(sys.argv[2]):
-    s, h, t, ns = line.split()
-    apart[(s, int(h), int(t))].append(ns)
-for (s, h, t), readings in sorted(apart.items(), key=lambda k: (len(k[0][0]), k[0])):
-    print(f"bed {s}, heat {h}, {t} threads: cores {', '.join(readings)} ns apart, by the repetition"
-          " (about 60: sharing a cache; about 330: on different dies, where am-sim's threads lose)")
+    prog, s, h, t, ns = line.split()
+    apart[(s, int(h), int(t), prog)].append(ns)
+for (s, h, t, prog), readings in sorted(apart.items(), key=lambda k: (len(k[0][0]), k[0])):
+    print(f"bed {s}, heat {h}, {t} threads: cores {', '.join(readings)} ns apart before {prog}'s runs"
+          " (about 60-80: sharing a cache; about 330: far apart, where both lose, am-sim more)")
 for s, t in sorted({(s, t) for s, _, t in keys}, key=lambda k: (len(k[0]), k)):
     if (s, 0, t) in keys and (s, 1, t) in keys:
         for prog in ("liggghts", "am-sim"):
