@@ -45,6 +45,7 @@ LATENCY=$(cargo bench --bench core_latency --no-run --message-format=json 2>/dev
 for m in map(json.loads, sys.stdin):
     if m.get("reason") == "compiler-artifact" and m["target"]["name"] == "core_latency" and m.get("executable"):
         print(m["executable"])')
+[ -x "$LATENCY" ] || { echo "cargo bench --bench core_latency --no-run built no executable" >&2; exit 1; }
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 # The host first: the ratio moves with it (on a Zen 3 without AVX-512 am-sim's contact laws run
