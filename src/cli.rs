@@ -93,6 +93,12 @@ struct RunArgs {
     /// whose arrays outgrow the caches. Results are bitwise the same either way.
     #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(crate::forces::PREFETCH_MODES))]
     prefetch: Option<String>,
+    /// Time the thread team's passes over the run and print, after the summary, each pass's
+    /// time per call and each thread's part of it: when it started, finished its own share and
+    /// its last item, and how many items it took from the others (where threads wait). Adds a
+    /// few clock readings per pass; results are bitwise the same.
+    #[arg(long)]
+    team_times: bool,
 }
 
 /// How a run ended without error.
@@ -323,12 +329,20 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
     // first one keeps working for its own flag, and this run simply cannot be interrupted.
     let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
 
+    if args.team_times {
+        crate::team::time_passes();
+    }
     let outcome = pool.install(|| run_loop(&mut sim, &mut writers, args.quiet, &interrupted));
+    // Taken before the summary, whose own measurements use the team.
+    let team_times = args.team_times.then(crate::team::pass_times);
     let files = writers.files(&sim);
     let closed = writers.close().map_err(|e| e.to_string());
     let outcome = outcome?;
     closed?;
     print_summary(&sim, &outcome, threads);
+    if let Some(times) = team_times {
+        print_team_times(&times);
+    }
     let ending = outcome.ending;
     for line in files {
         say!("{line}");
@@ -534,6 +548,37 @@ fn stop(sim: &Simulation, writers: &mut Writers, trip: &GuardTrip, wall: f64) ->
     }
     message.push_str(" (check dt and the scene with `am-sim check`; docs/stability.md)");
     message
+}
+
+/// The team's passes over the run (`--team-times`), the longest first, per call.
+fn print_team_times(times: &[crate::team::PassTimes]) {
+    say!(
+        "  team passes (µs per call: the call; then each thread's start, own share done, last item done, and items of its own + taken from the others):"
+    );
+    for pass in times {
+        let calls = pass.calls.max(1) as f64;
+        let name = if pass.part.is_empty() {
+            pass.name.to_owned()
+        } else {
+            format!("{}, {}", pass.name, pass.part)
+        };
+        let mut line = format!(
+            "    {name}: {} calls, {:.2} µs",
+            pass.calls,
+            1e6 * pass.wall / calls
+        );
+        for (member, m) in pass.members.iter().enumerate() {
+            line.push_str(&format!(
+                " | {member}: {:.2}, {:.2}, {:.2} ({:.1} + {:.1})",
+                1e6 * m.started / calls,
+                1e6 * m.own_done / calls,
+                1e6 * m.done / calls,
+                m.own_items as f64 / calls,
+                m.taken_items as f64 / calls
+            ));
+        }
+        say!("{line}");
+    }
 }
 
 /// "1 thread", "2 threads".

@@ -43,6 +43,7 @@ pub fn kick_drift(
     (dt, gravity): (f64, DVec3),
     opening: Opening,
 ) -> Drift {
+    let _pass = crate::team::PassName::enter("opening pass (kicks, drift)");
     let Particles {
         position,
         velocity,
@@ -132,6 +133,7 @@ pub struct Drift {
 /// pass that would carry it into the velocities, and it reads every force anyway).
 #[must_use]
 pub fn kick(particles: &mut Particles, rotation: Option<&mut Rotation>, dt: f64) -> Option<usize> {
+    let _pass = crate::team::PassName::enter("closing kick");
     let Particles {
         velocity,
         force,
@@ -281,6 +283,7 @@ impl KickDrift<'_> {
 /// pass are tested by the particle pass, chunk by chunk.)
 #[must_use]
 pub fn first_non_finite_vector(vectors: &[DVec3]) -> Option<usize> {
+    let _pass = crate::team::PassName::enter("finite test");
     let chunks: Vec<&[DVec3]> = vectors.chunks(CHUNK).collect();
     each_chunk(
         chunks,

@@ -431,6 +431,7 @@ impl NeighborList {
         if self.is_stale(positions.len()) {
             return f64::INFINITY;
         }
+        let _pass = crate::team::PassName::enter("displacement test");
         crate::team::largest(
             crate::worth_parallel(positions.len()),
             (positions, &self.reference_positions),
@@ -880,7 +881,9 @@ impl NeighborList {
             partial
         };
         let mut total = identity.clone();
-        for phase in &self.phases {
+        for (k, phase) in self.phases.iter().enumerate() {
+            let _part =
+                crate::team::PassName::part(["even slabs", "odd slabs", "the last slab"][k]);
             // The members of the thread team take the same share of every phase's slabs at
             // every pass.
             let part = crate::team::fold_items(

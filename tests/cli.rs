@@ -370,6 +370,47 @@ fn prefetching_changes_no_bit_of_the_results() {
     assert!(!dir.path().join("friction_pile.csv").exists());
 }
 
+/// `--team-times` prints, after the summary, a line per pass of the thread team with each
+/// thread's part, and changes no value of the run.
+#[test]
+fn team_times_name_the_passes_and_change_no_bit_of_the_results() {
+    let text_of_scene = short_friction_pile();
+    let run = |extra: &[&str]| {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("pile.toml"), &text_of_scene).unwrap();
+        let mut args = vec!["pile.toml", "--threads", "2"];
+        args.extend_from_slice(extra);
+        let out = am_sim(dir.path(), &args);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let series = std::fs::read_to_string(dir.path().join("friction_pile.csv")).unwrap();
+        (text(&out.stdout), without_wall_time(&series))
+    };
+    let (timed_stdout, timed_series) = run(&["--team-times"]);
+    let (plain_stdout, plain_series) = run(&[]);
+    let table = timed_stdout
+        .split_once("team passes")
+        .unwrap_or_else(|| panic!("no table of the team's passes: {timed_stdout}"))
+        .1;
+    for pass in [
+        "pair pass, even slabs: ",
+        "opening pass (kicks, drift): ",
+        "particle pass (walls): ",
+        "diagnostics: ",
+    ] {
+        let line = table
+            .lines()
+            .find(|l| l.trim_start().starts_with(pass))
+            .unwrap_or_else(|| panic!("no line for {pass}: {table}"));
+        assert!(
+            line.contains(" calls, ") && line.contains(" | 0: "),
+            "{line}"
+        );
+    }
+    assert!(!plain_stdout.contains("team passes"), "{plain_stdout}");
+    assert!(timed_series.len() > 20, "{timed_series:?}");
+    assert_eq!(timed_series, plain_series);
+}
+
 /// The thermal example of docs/scene-format.md (`spot.toml`), as the page gives it.
 fn spot_scene_of_the_docs() -> String {
     let page = std::fs::read_to_string(format!(

@@ -115,6 +115,7 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     (set, interval): (InstructionSet, f64),
     parallel: bool,
 ) -> ForceSummary {
+    let _pass = crate::team::PassName::enter("pair pass");
     let near_skin = near.skin(list);
     let prefetch = super::worth_prefetching(particles.len());
     list.for_each_slab_near(

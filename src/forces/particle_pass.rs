@@ -41,6 +41,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     listed: Option<&[u32]>,
     parallel: bool,
 ) -> ForceSummary {
+    let _pass = crate::team::PassName::enter("particle pass (walls)");
     let mut forces = std::mem::take(&mut particles.force);
     let mut dissipated = std::mem::take(&mut particles.dissipated);
     let state = &*particles;

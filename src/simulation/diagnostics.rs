@@ -463,6 +463,7 @@ impl Simulation {
         identity: impl Fn() -> R + Sync,
         visit: impl Fn(&mut R, Contact<'_>) + Sync,
     ) -> Vec<R> {
+        let _pass = crate::team::PassName::enter("diagnostics");
         let count = self.particles.len();
         let chunks: Vec<usize> = (0..count).step_by(PARTICLES_PER_ITEM).collect();
         let mut partials = crate::team::fold_items(

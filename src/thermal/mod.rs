@@ -743,6 +743,7 @@ pub fn advance(
     state: &mut ThermalState,
     step: StepInfo,
 ) {
+    let _pass = crate::team::PassName::enter("temperature update");
     let StepInfo {
         dt,
         first_flows,
@@ -874,6 +875,7 @@ fn heat_flows(
         heat_capacity,
         ..
     } = state;
+    let _pass = crate::team::PassName::enter("heat flows");
     let temperature = &*temperature;
     let parallel = crate::worth_parallel(temperature.len());
     heat_sums.fill(HeatSums::default());

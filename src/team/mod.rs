@@ -29,6 +29,10 @@ use std::time::{Duration, Instant};
 
 use crate::simd;
 
+mod timing;
+use timing::CallTimer;
+pub use timing::{MemberTimes, PassName, PassTimes, pass_times, time_passes};
+
 /// How long a member waits for the next job before it sleeps: far longer than the gaps between
 /// the regions of a step (microseconds), far shorter than a human notices a busy core. For the
 /// first eighth it spins, then it yields its core to other threads between looks.
@@ -241,9 +245,15 @@ impl Team {
         let shares: Vec<Claims> = (0..self.size)
             .map(|member| Claims::new(self.share(count, member)))
             .collect();
-        self.map_reduce(
+        let timer = CallTimer::start(self.size);
+        let folded = self.map_reduce(
             identity(),
             |member| {
+                let started = timer.as_ref().map_or(0.0, CallTimer::now);
+                let mut times = MemberTimes {
+                    started,
+                    ..MemberTimes::default()
+                };
                 let mut partial = identity();
                 for (turn, claims) in shares
                     .iter()
@@ -256,12 +266,28 @@ impl Team {
                     while let Some(index) = claims.claim(own) {
                         // SAFETY: `claim` hands out each index once.
                         partial = fold(partial, index, unsafe { items.take(index) });
+                        if own {
+                            times.own_items += 1;
+                        } else {
+                            times.taken_items += 1;
+                        }
                     }
+                    if own {
+                        times.own_done = timer.as_ref().map_or(0.0, CallTimer::now);
+                    }
+                }
+                if let Some(timer) = &timer {
+                    times.done = timer.now();
+                    timer.mark(member, times);
                 }
                 partial
             },
             merge,
-        )
+        );
+        if let Some(timer) = timer {
+            timer.finish();
+        }
+        folded
     }
 }
 
@@ -381,19 +407,36 @@ impl<A, B, F: Fn(&A, &B) -> f64> simd::Kernel for LargestOf<'_, A, B, F> {
     }
 }
 
-/// The items folded in order into one partial, merged into `identity()`.
+/// The items folded in order into one partial, merged into `identity()` (timed as a team of
+/// one when the passes are timed).
 fn fold_serially<T, R>(
     items: Vec<T>,
     identity: impl Fn() -> R,
     fold: impl Fn(R, usize, T) -> R,
     merge: impl Fn(R, R) -> R,
 ) -> R {
+    let timer = CallTimer::start(1);
+    let count = items.len() as u64;
     let folded = items
         .into_iter()
         .enumerate()
         .fold(identity(), |partial, (index, item)| {
             fold(partial, index, item)
         });
+    if let Some(timer) = timer {
+        let done = timer.now();
+        timer.mark(
+            0,
+            MemberTimes {
+                started: 0.0,
+                own_done: done,
+                done,
+                own_items: count,
+                taken_items: 0,
+            },
+        );
+        timer.finish();
+    }
     merge(identity(), folded)
 }
 
