@@ -16,6 +16,9 @@
 //! member 0 and the others are threads of the team's own. Results are the same for any size and
 //! any division of the work: the passes' partials are merged with associative, commutative
 //! merges (`max`, the lowest index on ties), and every sum stays within a slab or a particle.
+//!
+//! `am-sim --team-times` times every pass per member (`team/timing.rs`): where the threads work
+//! and where they wait.
 
 #![allow(unsafe_code)]
 
