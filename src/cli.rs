@@ -93,10 +93,11 @@ struct RunArgs {
     /// whose arrays outgrow the caches. Results are bitwise the same either way.
     #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(crate::forces::PREFETCH_MODES))]
     prefetch: Option<String>,
-    /// Time the thread team's passes over the run and print, after the summary, each pass's
-    /// time per call and each thread's part of it: when it started, finished its own share and
-    /// its last item, and how many items it took from the others (where threads wait). Adds a
-    /// few clock readings per pass; results are bitwise the same.
+    /// Time the thread team's passes and print, after the summary (and after the deposition's
+    /// line, for its own), each pass's time per call and each thread's part of it: when it
+    /// started, finished its own share and its last item, and how many items it took from the
+    /// others (where threads wait). Adds a few clock readings per pass; results are bitwise the
+    /// same.
     #[arg(long)]
     team_times: bool,
 }
@@ -273,6 +274,9 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
         say!("{start}");
     }
 
+    if args.team_times {
+        crate::team::time_passes();
+    }
     // [deposition] (not on --restart: the saved frames are already of the settled bed).
     if let (Some(settings), None) = (sim.model.deposition, &args.restart) {
         let bar = if args.quiet {
@@ -320,6 +324,9 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
         }
         say!("{line}: settled; the run starts now (t = 0)");
         say!("{indicators}");
+        if args.team_times {
+            print_team_times("deposition's team passes", &crate::team::take_pass_times());
+        }
     }
 
     // Ctrl-C asks the loop to stop after the current step; the last state is then written.
@@ -329,19 +336,16 @@ fn run(args: &RunArgs) -> Result<Ending, String> {
     // first one keeps working for its own flag, and this run simply cannot be interrupted.
     let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
 
-    if args.team_times {
-        crate::team::time_passes();
-    }
     let outcome = pool.install(|| run_loop(&mut sim, &mut writers, args.quiet, &interrupted));
     // Taken before the summary, whose own measurements use the team.
-    let team_times = args.team_times.then(crate::team::pass_times);
+    let team_times = args.team_times.then(crate::team::take_pass_times);
     let files = writers.files(&sim);
     let closed = writers.close().map_err(|e| e.to_string());
     let outcome = outcome?;
     closed?;
     print_summary(&sim, &outcome, threads);
     if let Some(times) = team_times {
-        print_team_times(&times);
+        print_team_times("team passes", &times);
     }
     let ending = outcome.ending;
     for line in files {
@@ -550,10 +554,10 @@ fn stop(sim: &Simulation, writers: &mut Writers, trip: &GuardTrip, wall: f64) ->
     message
 }
 
-/// The team's passes over the run (`--team-times`), the longest first, per call.
-fn print_team_times(times: &[crate::team::PassTimes]) {
+/// The team's passes of a stage of the run (`--team-times`), the longest first, per call.
+fn print_team_times(title: &str, times: &[crate::team::PassTimes]) {
     say!(
-        "  team passes (µs per call: the call; then each thread's start, own share done, last item done, and items of its own + taken from the others):"
+        "  {title} (µs per call: the call; then each thread's start, own share done, last item done, and items of its own + taken from the others):"
     );
     for pass in times {
         let calls = pass.calls.max(1) as f64;

@@ -139,6 +139,45 @@ fn the_run_starts_on_the_settled_bed() {
     );
 }
 
+/// `--team-times` reports the deposition's passes after its line and the run's after the
+/// summary, each stage's own: the run's opening pass is called once per step of the run (100),
+/// the deposition's once per step of its own.
+#[test]
+fn team_times_report_the_deposition_and_the_run_apart() {
+    let root = tempfile::tempdir().unwrap();
+    let path = write_scene(root.path(), 0.1);
+    let cwd = tempfile::tempdir().unwrap();
+    let out = am_sim(cwd.path(), &[&path, "--threads", "2", "-q", "--team-times"]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", text(&out.stderr));
+    let deposition_steps = common::number_after(
+        stdout
+            .lines()
+            .find(|l| l.starts_with("deposition: "))
+            .expect("a deposition line"),
+        "deposition: ",
+    );
+    let (deposition, run) = stdout
+        .split_once("  team passes (")
+        .unwrap_or_else(|| panic!("no table of the run's passes: {stdout}"));
+    let (_, deposition) = deposition
+        .split_once("  deposition's team passes (")
+        .unwrap_or_else(|| panic!("no table of the deposition's passes: {stdout}"));
+    assert!(
+        !run.contains("\ndone: ") && deposition.contains("\ndone: "),
+        "the run's table follows its summary: {stdout}"
+    );
+    let calls_of_opening = |table: &str| {
+        let line = table
+            .lines()
+            .find(|l| l.trim_start().starts_with("opening pass (kicks, drift): "))
+            .unwrap_or_else(|| panic!("no opening pass in {table}"));
+        common::number_after(line, "opening pass (kicks, drift): ")
+    };
+    assert_eq!(calls_of_opening(run), 100.0);
+    assert_eq!(calls_of_opening(deposition), deposition_steps);
+}
+
 #[test]
 fn a_bed_that_does_not_settle_in_time_stops_the_run() {
     let root = tempfile::tempdir().unwrap();

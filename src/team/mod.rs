@@ -34,7 +34,7 @@ use crate::simd;
 
 mod timing;
 use timing::CallTimer;
-pub use timing::{MemberTimes, PassName, PassTimes, pass_times, time_passes};
+pub use timing::{MemberTimes, PassName, PassTimes, take_pass_times, time_passes};
 
 /// How long a member waits for the next job before it sleeps: far longer than the gaps between
 /// the regions of a step (microseconds), far shorter than a human notices a busy core. For the
