@@ -268,18 +268,8 @@ series_csv = "overlap.csv"
 #[test]
 fn simd_caps_the_kernel_without_changing_a_bit_of_the_results() {
     let text_of_scene = short_friction_pile();
-    let run = |simd: Option<&str>| {
-        let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("pile.toml"), &text_of_scene).unwrap();
-        let mut args = vec!["pile.toml", "--threads", "2", "--quiet"];
-        args.extend(simd.map(|build| ["--simd", build]).into_iter().flatten());
-        let out = am_sim(dir.path(), &args);
-        assert!(out.status.success(), "{}", text(&out.stderr));
-        let series = std::fs::read_to_string(dir.path().join("friction_pile.csv")).unwrap();
-        (text(&out.stdout), series)
-    };
-    let (default_stdout, default_series) = run(None);
-    let (baseline_stdout, baseline_series) = run(Some("baseline"));
+    let (default_stdout, default_series) = run_short_pile(&["--quiet"]);
+    let (baseline_stdout, baseline_series) = run_short_pile(&["--quiet", "--simd", "baseline"]);
     assert!(
         baseline_stdout.contains("contact kernel baseline"),
         "{baseline_stdout}"
@@ -315,6 +305,19 @@ fn short_friction_pile() -> String {
         .replace("every_steps = 2000", "every_steps = 100")
 }
 
+/// The short friction pile run at 2 threads with `extra` arguments, in a folder of its own:
+/// its stdout and its series (`friction_pile.csv`), once the run succeeded.
+fn run_short_pile(extra: &[&str]) -> (String, String) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("pile.toml"), short_friction_pile()).unwrap();
+    let mut args = vec!["pile.toml", "--threads", "2"];
+    args.extend_from_slice(extra);
+    let out = am_sim(dir.path(), &args);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let series = std::fs::read_to_string(dir.path().join("friction_pile.csv")).unwrap();
+    (text(&out.stdout), series)
+}
+
 /// The rows of a series (CSV) without the wall time, which no two runs share.
 fn without_wall_time(series: &str) -> Vec<Vec<String>> {
     let wall_time = am_sim::output::SERIES_COLUMNS
@@ -341,15 +344,8 @@ fn prefetching_changes_no_bit_of_the_results() {
     // The plate's contacts are the particle pass's listed particles.
     let text_of_scene = short_friction_pile();
     let run = |mode: &str| {
-        let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("pile.toml"), &text_of_scene).unwrap();
-        let out = am_sim(
-            dir.path(),
-            &["pile.toml", "--threads", "2", "--prefetch", mode],
-        );
-        assert!(out.status.success(), "{}", text(&out.stderr));
-        let series = std::fs::read_to_string(dir.path().join("friction_pile.csv")).unwrap();
-        (text(&out.stdout), without_wall_time(&series))
+        let (stdout, series) = run_short_pile(&["--prefetch", mode]);
+        (stdout, without_wall_time(&series))
     };
     let (on_stdout, on_series) = run("on");
     let (off_stdout, off_series) = run("off");
@@ -374,16 +370,9 @@ fn prefetching_changes_no_bit_of_the_results() {
 /// thread's part, and changes no value of the run.
 #[test]
 fn team_times_name_the_passes_and_change_no_bit_of_the_results() {
-    let text_of_scene = short_friction_pile();
     let run = |extra: &[&str]| {
-        let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("pile.toml"), &text_of_scene).unwrap();
-        let mut args = vec!["pile.toml", "--threads", "2"];
-        args.extend_from_slice(extra);
-        let out = am_sim(dir.path(), &args);
-        assert!(out.status.success(), "{}", text(&out.stderr));
-        let series = std::fs::read_to_string(dir.path().join("friction_pile.csv")).unwrap();
-        (text(&out.stdout), without_wall_time(&series))
+        let (stdout, series) = run_short_pile(extra);
+        (stdout, without_wall_time(&series))
     };
     let (timed_stdout, timed_series) = run(&["--team-times"]);
     let (plain_stdout, plain_series) = run(&[]);
