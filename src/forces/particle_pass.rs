@@ -222,7 +222,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
                     }
                     max_overlap
                 };
-                summary.observe_overlap(max_overlap / radius, k);
+                summary.observe_overlap_of(max_overlap, radius, k);
             }
             if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
                 heat_round.add(h, state, set, particle);
