@@ -7,36 +7,28 @@
 //! beam or a lit particle has moved half a cell; the fifty-fifth round of docs/performance.md
 //! made the cast go disk by disk (1.16× on the flagship's scan at 2 threads).
 
+use am_sim::bed::rng::SplitMix64;
 use am_sim::laser::Laser;
 use am_sim::particles::{ParticleInit, Particles};
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{DVec2, DVec3};
 use std::hint::black_box;
 
-/// A random pile over the window and a margin around it (SplitMix64, fixed seed).
+/// A random pile over the window and a margin around it (fixed seed).
 fn pile() -> Particles {
-    let mut state: u64 = 55;
-    let mut uniform = move || {
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        #[allow(clippy::cast_precision_loss)]
-        let unit = (z ^ (z >> 31)) as f64 / u64::MAX as f64;
-        unit
-    };
+    let mut random = SplitMix64(55);
     let mut particles = Particles::default();
     // The flagship's 1,770 spheres per mm² over a 0.4 × 0.4 mm square: 283, of which about half
     // reach into the ±120 µm window.
     for _ in 0..283 {
         let init = ParticleInit {
             position: DVec3::new(
-                -2.0e-4 + 4.0e-4 * uniform(),
-                -2.0e-4 + 4.0e-4 * uniform(),
-                6.0e-5 * uniform(),
+                random.uniform(-2.0e-4, 2.0e-4),
+                random.uniform(-2.0e-4, 2.0e-4),
+                random.uniform(0.0, 6.0e-5),
             ),
             velocity: DVec3::ZERO,
-            radius: 7.5e-6 + 22.5e-6 * uniform(),
+            radius: random.uniform(7.5e-6, 3.0e-5),
             material: 0,
         };
         particles.push(init, 7950.0);

@@ -115,10 +115,13 @@ impl Laser {
             })
             .collect();
         let raster = Raster::new(self, beam, reach);
+        // Each disk's cells, found once for both passes (their roundings are calls to `floor`
+        // and `ceil` in a generic x86-64 build).
+        let cells: Vec<Cells> = disks.iter().map(|disk| raster.bounds(disk)).collect();
         let parallel = crate::worth_parallel(raster.cells * raster.cells);
-        let top = raster.highest_disks(&disks, parallel);
+        let top = raster.highest_disks(&disks, &cells, parallel);
         // Each disk's (crossed, hit) cell power, summed over its cells in raster order.
-        let seen = |slot: usize| raster.crossed_and_hit(&disks[slot], slot, &top);
+        let seen = |slot: usize| raster.crossed_and_hit(&disks[slot], &cells[slot], slot, &top);
         let sums: Vec<(f64, f64)> = if parallel {
             (0..disks.len()).into_par_iter().map(seen).collect()
         } else {
@@ -163,14 +166,24 @@ struct Disk {
 }
 
 impl Disk {
+    /// `ρ²` \[m²\], the squared distance of `ray` from the disk's centre, if the ray crosses the
+    /// disk (`ρ < r`).
+    #[inline]
+    fn crossing(&self, ray: DVec2) -> Option<f64> {
+        let rho2 = (ray - self.centre.truncate()).length_squared();
+        (rho2 < self.radius * self.radius).then_some(rho2)
+    }
+
     /// The height \[m\] of the sphere's surface above `ray`, if the ray crosses the disk.
     #[inline]
     fn surface_above(&self, ray: DVec2) -> Option<f64> {
-        let r2 = self.radius * self.radius;
-        let rho2 = (ray - self.centre.truncate()).length_squared();
-        (rho2 < r2).then(|| self.centre.z + (r2 - rho2).sqrt())
+        self.crossing(ray)
+            .map(|rho2| self.centre.z + (self.radius * self.radius - rho2).sqrt())
     }
 }
+
+/// The raster's rows and columns whose rays may cross a disk ([`Raster::bounds`]).
+type Cells = (Range<usize>, Range<usize>);
 
 /// The disk (slot) whose surface is highest above `ray`: the first in slot order on ties.
 fn highest_at(disks: &[Disk], ray: DVec2) -> Option<usize> {
@@ -254,7 +267,7 @@ impl Raster {
 
     /// The cells (rows, columns) whose rays may cross `disk`: its bounding square, widened by a
     /// cell so that rounding never leaves one out (the test on each ray decides).
-    fn bounds(&self, disk: &Disk) -> (Range<usize>, Range<usize>) {
+    fn bounds(&self, disk: &Disk) -> Cells {
         let span = |centre: f64, start: f64| -> Range<usize> {
             let lo = ((centre - disk.radius - start) / self.h - 0.5).floor() - 1.0;
             let hi = ((centre + disk.radius - start) / self.h - 0.5).ceil() + 1.0;
@@ -277,15 +290,14 @@ impl Raster {
     /// (the first in slot order on ties, as a ray testing the disks in that order finds it), or
     /// [`NO_DISK`]. Parallel over bands of rows, each disk taken in slot order in every band, so
     /// the result does not depend on the thread count.
-    fn highest_disks(&self, disks: &[Disk], parallel: bool) -> Vec<u32> {
+    fn highest_disks(&self, disks: &[Disk], cells_of: &[Cells], parallel: bool) -> Vec<u32> {
         let cells = self.cells;
         let mut top = vec![NO_DISK; cells * cells];
         let band = |(index, slots): (usize, &mut [u32])| {
             let first_row = index * ROWS_PER_BAND;
             let band_rows = first_row..first_row + slots.len() / cells;
             let mut heights = vec![f64::NEG_INFINITY; slots.len()];
-            for (slot, disk) in disks.iter().enumerate() {
-                let (rows, cols) = self.bounds(disk);
+            for (slot, (disk, (rows, cols))) in disks.iter().zip(cells_of).enumerate() {
                 let slot = u32::try_from(slot).expect("fewer than 2^32 lit particles");
                 for row in rows.start.max(band_rows.start)..rows.end.min(band_rows.end) {
                     for col in cols.clone() {
@@ -315,13 +327,13 @@ impl Raster {
 
     /// The beam power of the cells whose rays cross `disk` and of those where `disk` (at
     /// `slot`) is the highest, each summed in raster order.
-    fn crossed_and_hit(&self, disk: &Disk, slot: usize, top: &[u32]) -> (f64, f64) {
-        let (rows, cols) = self.bounds(disk);
+    fn crossed_and_hit(&self, disk: &Disk, cells: &Cells, slot: usize, top: &[u32]) -> (f64, f64) {
+        let (rows, cols) = cells;
         let (mut crossed, mut hit) = (0.0, 0.0);
-        for row in rows {
+        for row in rows.clone() {
             let share_y = self.row_shares[row];
             for col in cols.clone() {
-                if disk.surface_above(self.ray(row, col)).is_none() {
+                if disk.crossing(self.ray(row, col)).is_none() {
                     continue;
                 }
                 let cell_power = share_y * self.column_shares[col];
@@ -627,27 +639,19 @@ mod tests {
     /// A random pile around the beam, some disks reaching out of the window, some smaller than
     /// a raster cell, and two spheres at the very same place (a tie in every ray).
     fn random_pile(count: usize, seed: u64) -> Particles {
-        let mut state = seed;
-        let mut uniform = move || {
-            // SplitMix64: enough for test positions.
-            state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            (z ^ (z >> 31)) as f64 / u64::MAX as f64
-        };
+        let mut random = crate::bed::rng::SplitMix64(seed);
         let mut p = Particles::default();
         for i in 0..count {
             let radius = if i % 17 == 0 {
                 0.4e-6
             } else {
-                7.5e-6 + 22.5e-6 * uniform()
+                random.uniform(7.5e-6, 3.0e-5)
             };
             let init = crate::particles::ParticleInit {
                 position: DVec3::new(
-                    -1.5e-4 + 3.0e-4 * uniform(),
-                    -1.5e-4 + 3.0e-4 * uniform(),
-                    1.0e-4 * uniform(),
+                    random.uniform(-1.5e-4, 1.5e-4),
+                    random.uniform(-1.5e-4, 1.5e-4),
+                    random.uniform(0.0, 1.0e-4),
                 ),
                 velocity: DVec3::ZERO,
                 radius,
