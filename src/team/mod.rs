@@ -8,8 +8,8 @@
 //! of the pair pass lasted 2-6 % longer than its busier thread (docs/performance.md, thirteenth
 //! round). A team member takes its share first (the same contiguous part of the particles and
 //! slabs at every pass, so the same data in its cache), then helps the others from the back of
-//! theirs ([`Team::fold_items`]: on a shared machine a member may lose its core for a while), and
-//! spins between regions instead of sleeping; a member idle for longer than 200 µs (`SPIN`)
+//! theirs, all but the item each is about to reach ([`Team::fold_items`]: on a shared machine a
+//! member may lose its core for a while), and spins between regions instead of sleeping; a member idle for longer than 200 µs (`SPIN`)
 //! sleeps until the next job (outside the step loop).
 //!
 //! The team has as many members as the rayon pool the caller runs in (`--threads`): the caller is
@@ -232,7 +232,9 @@ impl Team {
     /// Each member takes its share of the items (by [`Team::share`]) from the front, so that it
     /// works on the same items at every pass. A member done with its share then takes items
     /// from the back of the others' shares: a member whose core the host took for a while (this
-    /// machine is shared) is helped instead of waited for.
+    /// machine is shared) is helped instead of waited for. It leaves each share's next item to
+    /// its owner, whose cache holds that item's data: on cores far apart, a helper took several
+    /// times as long over it (docs/performance.md, fifty-sixth round).
     pub fn fold_items<T: Send, R: Send>(
         &self,
         items: Vec<T>,
@@ -483,13 +485,20 @@ impl Claims {
         Self(AtomicU64::new(u64::from(front) << 32 | u64::from(back)))
     }
 
-    /// Claims the next index from the front (`own`) or the back, if any is left.
+    /// Claims the next index from the front (`own`), or from the back for a helper, if any is
+    /// left. A helper leaves the owner its next item: the call waits for the owner to come back
+    /// to its share in any case (every member reports back), and the item's data are in the
+    /// owner's cache, so a helper that takes it takes longer than its owner would. Taking it
+    /// while the owner finished the one before made the drift's calls on the flagship's
+    /// deposition at 2 threads last 51-55 µs instead of 34 (docs/performance.md, fifty-sixth
+    /// round).
     fn claim(&self, own: bool) -> Option<usize> {
         let mut current = self.0.load(Ordering::Acquire);
         loop {
             #[allow(clippy::cast_possible_truncation)]
             let (front, back) = ((current >> 32) as u32, current as u32);
-            if front >= back {
+            if front >= back || (!own && back - front < 2) {
+                // (The second: a helper's turn, and only the owner's next item left.)
                 return None;
             }
             let (claimed, next) = if own {
@@ -624,6 +633,24 @@ mod tests {
         assert_eq!(largest(true, (&[] as &[f64], &[] as &[f64]), half), 0.0);
     }
 
+    /// A helper takes from the back but leaves the owner the next item of its share; the owner
+    /// takes it, and nobody takes an item twice.
+    #[test]
+    fn helpers_leave_the_owner_its_next_item() {
+        let claims = Claims::new(4..7);
+        assert_eq!(claims.claim(false), Some(6));
+        assert_eq!(claims.claim(false), Some(5));
+        assert_eq!(claims.claim(false), None, "item 4 is left to its owner");
+        assert_eq!(claims.claim(true), Some(4));
+        assert_eq!(claims.claim(true), None);
+        assert_eq!(claims.claim(false), None);
+        let single = Claims::new(9..10);
+        assert_eq!(single.claim(false), None);
+        assert_eq!(single.claim(true), Some(9));
+        let empty = Claims::new(3..3);
+        assert_eq!((empty.claim(true), empty.claim(false)), (None, None));
+    }
+
     #[test]
     fn shares_cover_the_items_once_in_order() {
         for size in 1..5 {
@@ -660,7 +687,8 @@ mod tests {
     }
 
     /// Every item is folded once, the partials come back in member order, and a member held
-    /// up on its first item is helped: the others take the rest of its share from the back.
+    /// up on its first item is helped: the others take the rest of its share from the back, all
+    /// but its next item.
     #[test]
     fn items_are_folded_once_and_a_held_up_member_is_helped() {
         let team = Team::new(3);
