@@ -9,8 +9,9 @@
 //! round). A team member takes its share first (the same contiguous part of the particles and
 //! slabs at every pass, so the same data in its cache), then helps the others from the back of
 //! theirs, all but the item each is about to reach ([`Team::fold_items`]: on a shared machine a
-//! member may lose its core for a while), and spins between regions instead of sleeping; a member idle for longer than 200 µs (`SPIN`)
-//! sleeps until the next job (outside the step loop).
+//! member may lose its core for a while), and spins between regions instead of sleeping; a
+//! member idle for longer than 200 µs (`SPIN`) sleeps until the next job (outside the step
+//! loop).
 //!
 //! The team has as many members as the rayon pool the caller runs in (`--threads`): the caller is
 //! member 0 and the others are threads of the team's own. Results are the same for any size and
