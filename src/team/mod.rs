@@ -490,9 +490,9 @@ impl Claims {
     /// left. A helper leaves the owner its next item: the call waits for the owner to come back
     /// to its share in any case (every member reports back), and the item's data are in the
     /// owner's cache, so a helper that takes it takes longer than its owner would. Taking it
-    /// while the owner finished the one before made the drift's calls on the flagship's
-    /// deposition at 2 threads last 51-55 µs instead of 34 (docs/performance.md, fifty-sixth
-    /// round).
+    /// while the owner finished the one before made the opening pass's calls (kicks and drift)
+    /// on the flagship's deposition at 2 threads last 51-55 µs instead of 34, on cores far apart
+    /// (docs/performance.md, fifty-sixth round).
     fn claim(&self, own: bool) -> Option<usize> {
         let mut current = self.0.load(Ordering::Acquire);
         loop {
