@@ -134,7 +134,7 @@ impl Rotation {
             angular_velocity: vec![DVec3::ZERO; particles],
             torque: vec![DVec3::ZERO; particles],
             walls,
-            wall_springs: WallSprings::new(particles),
+            wall_springs: WallSprings::new(),
         }
     }
 

@@ -1106,6 +1106,29 @@ impl<'a> ParticleChunk<'a> {
         self.range.clone()
     }
 
+    /// The token of particle `k` of the chunk's range, listed or not: a pass that reaches
+    /// particles by a list of its own (the wall candidates) takes their tokens here. A particle
+    /// may be named more than once: tokens give access by value only (no reference an access
+    /// could alias), and the chunk's whole range is its own, on its own thread.
+    ///
+    /// # Panics
+    /// If `k` lies outside the chunk's range.
+    #[must_use]
+    #[inline(always)]
+    pub fn member(&self, k: usize) -> Member<'a> {
+        assert!(
+            self.range.contains(&k),
+            "particle {k} outside the chunk's {:?}",
+            self.range
+        );
+        Member {
+            // (k < count < 2^32: `for_each_chunk`.)
+            index: k as u32,
+            window: PhantomData,
+            thread: PhantomData,
+        }
+    }
+
     /// A window for each of the chunk's particles, in ascending order.
     pub fn windows(&self) -> impl Iterator<Item = Window<'a>> + '_ {
         let (range, listed) = match &self.particles {

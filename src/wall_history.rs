@@ -1,121 +1,40 @@
-//! The tangential springs of the particle-wall contacts, only for the contacts that hold one.
+//! The tangential springs of the particle-wall contacts, stored by wall candidate.
 //!
 //! A dense store (a 32-byte spring per particle and wall) costs `32 × walls` bytes per particle
-//! although few particles touch a wall: on the LIGGGHTS bed 7 % touch the plate, and a box of
-//! five walls would hold 160 bytes per particle of mostly zeros. Instead the particles are cut
-//! into chunks of [`PARTICLES_PER_CHUNK`] consecutive indices, and each chunk keeps a list of its
-//! non-zero springs sorted by (particle, wall). The particle pass visits a chunk's particles in
-//! ascending order, so it reads the list with a cursor (a merge, no search) and appends the new
-//! springs to a second buffer in the same order; the two swap after the pass. The chunks are
-//! fixed by the particle count, not by the threads, so the pass gives the same result for any
-//! thread count. A reorder of the particles renumbers and re-sorts the entries.
+//! although few particles come near a wall: on the LIGGGHTS bed about 7 % touch the plate, and
+//! a box of five walls would hold 160 bytes per particle of mostly zeros. Instead the store
+//! keeps one slot per *key*, a (particle, wall) pair, sorted by particle then wall: the wall
+//! candidates of the neighbour list's current build (`forces::WallCandidates`, the pairs that
+//! may touch before the next build), and any pair holding a spring that is not among them.
+//! The particle pass reads and writes the slots in place, by position, as the pair pass does the
+//! springs of its slots: no search, no merge, no second buffer. When the candidates are taken
+//! anew, [`WallSprings::align`] carries the springs over to the new keys by a merge. A reorder
+//! of the particles renumbers and re-sorts the keys, and the next pass aligns them again.
+
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::contact::tangential::TangentialSpring;
 
-/// Consecutive particles per chunk: the thread team's items of a pass over particles, so that a
-/// chunk's springs are read and written by the member that takes its particles.
-pub const PARTICLES_PER_CHUNK: usize = crate::team::PARTICLES_PER_ITEM;
-
-/// One non-zero wall spring: particle index, wall index and the spring.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Entry {
-    particle: u32,
-    wall: u32,
-    spring: TangentialSpring,
+/// A particle-wall pair: particle index, then wall index, the order the pass visits them in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct WallKey {
+    /// The particle's index.
+    pub particle: u32,
+    /// The wall's index in the model.
+    pub wall: u32,
 }
 
-impl Entry {
-    fn key(&self) -> (u32, u32) {
-        (self.particle, self.wall)
-    }
-}
-
-/// The wall springs of one chunk: those the last pass left (`held`, sorted by (particle, wall)),
-/// the running pass's cursor into them, and what the running pass writes (`next`).
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Chunk {
-    held: Vec<Entry>,
-    cursor: usize,
-    next: Vec<Entry>,
-}
-
-impl Chunk {
-    /// The spring particle `k` held against wall `w` at the last pass (zero if none). Within a
-    /// pass, calls must come in ascending (particle, wall) order, each pair at most once.
-    #[inline]
+impl WallKey {
+    /// The pair of particle `k` and wall `w`.
+    ///
+    /// # Panics
+    /// With 2^32 particles or walls or more.
     #[must_use]
-    pub fn take(&mut self, k: usize, w: usize) -> TangentialSpring {
-        let key = (index(k), index(w));
-        self.pass_before(key);
-        match self.held.get(self.cursor) {
-            Some(e) if e.key() == key => {
-                self.cursor += 1;
-                e.spring
-            }
-            _ => TangentialSpring::default(),
+    pub fn new(k: usize, w: usize) -> Self {
+        Self {
+            particle: index(k),
+            wall: index(w),
         }
-    }
-
-    /// Whether particle `k` held a spring against some wall at the last pass. Within a pass,
-    /// calls come in ascending particle order, as for [`Chunk::take`] (which may follow for
-    /// the same particle).
-    #[inline]
-    #[must_use]
-    pub fn holds_any(&mut self, k: usize) -> bool {
-        let particle = index(k);
-        self.pass_before((particle, 0));
-        self.held
-            .get(self.cursor)
-            .is_some_and(|e| e.particle == particle)
-    }
-
-    /// Whether particle `k` held a spring at the last pass against a wall `w` for which
-    /// `apart(w)`: a spring that lets go at this pass. Call after [`Chunk::holds_any`] for `k`,
-    /// before any [`Chunk::take`] for it; moves no cursor.
-    #[inline]
-    #[must_use]
-    pub fn holds_any_where(&self, k: usize, apart: impl Fn(usize) -> bool) -> bool {
-        let particle = index(k);
-        self.held[self.cursor.min(self.held.len())..]
-            .iter()
-            .take_while(|e| e.particle == particle)
-            .any(|e| apart(e.wall as usize))
-    }
-
-    /// Moves the cursor past the entries before `key`: they belong to pairs the pass has gone
-    /// by, and the visit order makes this at most one step per entry over the whole pass.
-    #[inline]
-    fn pass_before(&mut self, key: (u32, u32)) {
-        while self.held.get(self.cursor).is_some_and(|e| e.key() < key) {
-            self.cursor += 1;
-        }
-    }
-
-    /// Records the spring of (`k`, `w`) after this pass; a zero spring is not stored.
-    #[inline]
-    pub fn keep(&mut self, k: usize, w: usize, spring: TangentialSpring) {
-        if spring != TangentialSpring::default() {
-            debug_assert!(
-                self.next
-                    .last()
-                    .is_none_or(|e| e.key() < (index(k), index(w)))
-            );
-            self.next.push(Entry {
-                particle: index(k),
-                wall: index(w),
-                spring,
-            });
-        }
-    }
-
-    fn begin(&mut self) {
-        self.cursor = 0;
-        self.next.clear();
-    }
-
-    fn end(&mut self) {
-        std::mem::swap(&mut self.held, &mut self.next);
-        self.next.clear();
     }
 }
 
@@ -123,19 +42,40 @@ fn index(k: usize) -> u32 {
     u32::try_from(k).expect("fewer than 2^32 particles and walls")
 }
 
-/// The wall springs of every particle, chunked (see the module documentation).
-#[derive(Debug, Clone, Default, PartialEq)]
+/// Names one taking of a set of keys, unique over the process, so that a store aligned to one
+/// set of candidates is never taken for aligned to another (0: aligned to none).
+static TAKINGS: AtomicU64 = AtomicU64::new(1);
+
+/// A fresh name for a set of keys just taken ([`WallSprings::align`]).
+#[must_use]
+pub fn new_taking() -> u64 {
+    TAKINGS.fetch_add(1, Ordering::Relaxed)
+}
+
+/// The wall springs of every particle, one slot per key (see the module documentation). Two
+/// stores are equal when they hold the same non-zero springs, whatever their zero slots.
+#[derive(Debug, Clone, Default)]
 pub struct WallSprings {
-    chunks: Vec<Chunk>,
+    /// Ascending.
+    keys: Vec<WallKey>,
+    /// The spring of each key (zero where the pair holds none).
+    springs: Vec<TangentialSpring>,
+    /// The taking of the candidates the keys were aligned to (0: none since the last change
+    /// from outside the pass).
+    aligned_to: u64,
+}
+
+impl PartialEq for WallSprings {
+    fn eq(&self, other: &Self) -> bool {
+        self.entries().eq(other.entries())
+    }
 }
 
 impl WallSprings {
-    /// No spring, for `particles` particles.
+    /// No spring.
     #[must_use]
-    pub fn new(particles: usize) -> Self {
-        Self {
-            chunks: vec![Chunk::default(); particles.div_ceil(PARTICLES_PER_CHUNK)],
-        }
+    pub fn new() -> Self {
+        Self::default()
     }
 
     /// The springs `(particle, wall, spring)`, non-zero ones only, for `particles` particles
@@ -148,26 +88,23 @@ impl WallSprings {
         particles: usize,
         entries: impl IntoIterator<Item = (usize, usize, TangentialSpring)>,
     ) -> Self {
-        let mut store = Self::new(particles);
-        let mut all: Vec<Entry> = entries
+        let mut all: Vec<(WallKey, TangentialSpring)> = entries
             .into_iter()
             .filter(|(.., spring)| *spring != TangentialSpring::default())
             .map(|(k, w, spring)| {
                 assert!(k < particles, "wall spring of particle {k} of {particles}");
-                Entry {
-                    particle: index(k),
-                    wall: index(w),
-                    spring,
-                }
+                (WallKey::new(k, w), spring)
             })
             .collect();
         // Stable, so that of a pair given twice the last stays last and wins below.
-        all.sort_by_key(Entry::key);
-        for entry in all {
-            let held = &mut store.chunks[entry.particle as usize / PARTICLES_PER_CHUNK].held;
-            match held.last_mut() {
-                Some(last) if last.key() == entry.key() => *last = entry,
-                _ => held.push(entry),
+        all.sort_by_key(|(key, _)| *key);
+        let mut store = Self::default();
+        for (key, spring) in all {
+            if store.keys.last() == Some(&key) {
+                *store.springs.last_mut().expect("as many springs as keys") = spring;
+            } else {
+                store.keys.push(key);
+                store.springs.push(spring);
             }
         }
         store
@@ -175,19 +112,20 @@ impl WallSprings {
 
     /// The non-zero springs as `(particle, wall, spring)`, by particle then wall.
     pub fn entries(&self) -> impl Iterator<Item = (usize, usize, TangentialSpring)> + '_ {
-        self.chunks
+        self.keys
             .iter()
-            .flat_map(|c| &c.held)
-            .map(|e| (e.particle as usize, e.wall as usize, e.spring))
+            .zip(&self.springs)
+            .filter(|(_, spring)| **spring != TangentialSpring::default())
+            .map(|(key, spring)| (key.particle as usize, key.wall as usize, *spring))
     }
 
     /// The spring of particle `k` against wall `w` (zero if none); a binary search, for tests
     /// and tools.
     #[must_use]
     pub fn get(&self, k: usize, w: usize) -> TangentialSpring {
-        let held = &self.chunks[k / PARTICLES_PER_CHUNK].held;
-        held.binary_search_by_key(&(index(k), index(w)), Entry::key)
-            .map_or(TangentialSpring::default(), |i| held[i].spring)
+        self.keys
+            .binary_search(&WallKey::new(k, w))
+            .map_or(TangentialSpring::default(), |i| self.springs[i])
     }
 
     /// Stored energy of the springs \[J\] (M.63), by particle then wall.
@@ -211,28 +149,47 @@ impl WallSprings {
         *self = Self::from_entries(order.len(), kept);
     }
 
-    /// The chunks, ready for a pass: each visits its particles in ascending order, with
-    /// [`Chunk::take`] and [`Chunk::keep`]; [`WallSprings::end_pass`] ends it.
-    ///
-    /// # Panics
-    /// If the store was not made for `particles` particles.
-    pub fn begin_pass(&mut self, particles: usize) -> &mut [Chunk] {
-        assert_eq!(
-            self.chunks.len(),
-            particles.div_ceil(PARTICLES_PER_CHUNK),
-            "wall springs made for another particle count"
-        );
-        for chunk in &mut self.chunks {
-            chunk.begin();
+    /// Makes the keys those of `candidates` (ascending, named by `taking`, [`new_taking`]),
+    /// and those of any spring held by a pair not among them (which cannot touch a wall before
+    /// the next build, so that the pass finds it apart and books its energy: none should be
+    /// left, but none is lost either), each with the spring it held. Does nothing if the keys
+    /// are already aligned to `taking`. Returns the keys, with their springs.
+    pub fn align(
+        &mut self,
+        candidates: &[WallKey],
+        taking: u64,
+    ) -> (&[WallKey], &mut [TangentialSpring]) {
+        if taking == 0 || self.aligned_to != taking {
+            debug_assert!(candidates.is_sorted_by(|a, b| a < b));
+            let mut keys = Vec::with_capacity(candidates.len());
+            let mut springs = Vec::with_capacity(candidates.len());
+            let mut held = self
+                .keys
+                .iter()
+                .zip(&self.springs)
+                .filter(|(_, spring)| **spring != TangentialSpring::default())
+                .peekable();
+            for &candidate in candidates {
+                // The held springs of pairs before this candidate, which are not candidates.
+                while let Some((&key, &spring)) = held.next_if(|(key, _)| **key < candidate) {
+                    keys.push(key);
+                    springs.push(spring);
+                }
+                keys.push(candidate);
+                springs.push(
+                    held.next_if(|(key, _)| **key == candidate)
+                        .map_or(TangentialSpring::default(), |(_, spring)| *spring),
+                );
+            }
+            for (&key, &spring) in held {
+                keys.push(key);
+                springs.push(spring);
+            }
+            self.keys = keys;
+            self.springs = springs;
+            self.aligned_to = taking;
         }
-        &mut self.chunks
-    }
-
-    /// Makes the springs the pass kept the current ones.
-    pub fn end_pass(&mut self) {
-        for chunk in &mut self.chunks {
-            chunk.end();
-        }
+        (&self.keys, &mut self.springs)
     }
 }
 
@@ -248,79 +205,79 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_pass_reads_what_the_last_pass_kept() {
-        let n = 3 * PARTICLES_PER_CHUNK + 5;
-        let mut store = WallSprings::from_entries(n, [(7, 1, spring(1.0)), (2000, 0, spring(2.0))]);
-        let chunks = store.begin_pass(n);
-        let mut seen = Vec::new();
-        for (c, chunk) in chunks.iter_mut().enumerate() {
-            let first = c * PARTICLES_PER_CHUNK;
-            for k in first..(first + PARTICLES_PER_CHUNK).min(n) {
-                // Asked before the particle's springs are taken, as the particle pass does.
-                assert_eq!(chunk.holds_any(k), k == 7 || k == 2000, "particle {k}");
-                for w in 0..2 {
-                    let held = chunk.take(k, w);
-                    if held != TangentialSpring::default() {
-                        seen.push((k, w, held));
-                    }
-                    // Particle 7 lets go of wall 1; particle n - 1 touches wall 0.
-                    let now = match (k, w) {
-                        (2000, 0) => spring(3.0),
-                        (k, 0) if k == n - 1 => spring(4.0),
-                        _ => TangentialSpring::default(),
-                    };
-                    chunk.keep(k, w, now);
-                }
-            }
-        }
-        store.end_pass();
-        assert_eq!(seen, vec![(7, 1, spring(1.0)), (2000, 0, spring(2.0))]);
-        let now: Vec<_> = store.entries().collect();
-        assert_eq!(now, vec![(2000, 0, spring(3.0)), (n - 1, 0, spring(4.0))]);
-        assert_eq!(store.get(2000, 0), spring(3.0));
-        assert_eq!(store.get(7, 1), TangentialSpring::default());
-        assert!((store.spring_energy() - 25.0).abs() < 1e-12);
+    fn keys(pairs: &[(usize, usize)]) -> Vec<WallKey> {
+        pairs.iter().map(|&(k, w)| WallKey::new(k, w)).collect()
     }
 
-    /// The particle pass asks which walls a particle's springs belong to before it takes them:
-    /// the answer names that particle's springs alone, and asking moves no cursor.
+    /// Aligned to a set of candidates, the store holds a slot for each, with the spring the pair
+    /// held (zero for a new one), and keeps a held spring whose pair is not a candidate, in key
+    /// order; aligned again to the same taking it changes nothing, to a new one it follows.
     #[test]
-    fn a_particle_s_springs_are_told_by_wall_before_they_are_taken() {
-        let n = 10;
+    fn aligned_keys_carry_the_springs_over() {
         let mut store = WallSprings::from_entries(
-            n,
+            3000,
             [
-                (2, 0, spring(1.0)),
-                (2, 3, spring(2.0)),
-                (4, 1, spring(3.0)),
+                (7, 1, spring(1.0)),
+                (2000, 0, spring(2.0)),
+                (5, 0, spring(5.0)),
             ],
         );
-        let chunk = &mut store.begin_pass(n)[0];
-        assert!(!chunk.holds_any(1));
-        assert!(
-            !chunk.holds_any_where(1, |_| true),
-            "particle 2's springs are not 1's"
+        let candidates = keys(&[(5, 0), (6, 0), (2000, 0), (2999, 1)]);
+        let taking = new_taking();
+        let (aligned, springs) = store.align(&candidates, taking);
+        assert_eq!(
+            aligned,
+            keys(&[(5, 0), (6, 0), (7, 1), (2000, 0), (2999, 1)])
         );
-        assert!(chunk.holds_any(2));
-        assert!(chunk.holds_any_where(2, |w| w == 3));
-        assert!(chunk.holds_any_where(2, |w| w == 0));
-        assert!(!chunk.holds_any_where(2, |w| w == 1 || w == 2));
-        assert!(
-            !chunk.holds_any_where(2, |w| w == 4),
-            "particle 4's wall 1 is not 2's"
+        let zero = TangentialSpring::default();
+        assert_eq!(springs, [spring(5.0), zero, spring(1.0), spring(2.0), zero]);
+        // The pass writes in place: particle 7 let go, 2999 touched.
+        springs[2] = zero;
+        springs[4] = spring(4.0);
+        let (again, _) = store.align(&candidates[..1], taking);
+        assert_eq!(again.len(), 5, "the same taking: nothing changes");
+        let now: Vec<_> = store.entries().collect();
+        assert_eq!(
+            now,
+            vec![
+                (5, 0, spring(5.0)),
+                (2000, 0, spring(2.0)),
+                (2999, 1, spring(4.0))
+            ]
         );
-        // Nothing was taken: both springs are still there.
-        assert_eq!(chunk.take(2, 0), spring(1.0));
-        assert_eq!(chunk.take(2, 3), spring(2.0));
-        assert!(chunk.holds_any(4) && chunk.holds_any_where(4, |w| w == 1));
-        assert_eq!(chunk.take(4, 1), spring(3.0));
-        assert!(!chunk.holds_any_where(4, |_| true), "taken");
+        assert_eq!(store.get(2999, 1), spring(4.0));
+        assert_eq!(store.get(7, 1), zero);
+        assert!((store.spring_energy() - 45.0).abs() < 1e-12);
+        // A new taking without particle 2000: its spring stays, as a key of its own.
+        let (aligned, springs) = store.align(&keys(&[(5, 0), (2999, 1)]), new_taking());
+        assert_eq!(aligned, keys(&[(5, 0), (2000, 0), (2999, 1)]));
+        assert_eq!(springs, [spring(5.0), spring(2.0), spring(4.0)]);
+        // Zero slots do not make two stores differ.
+        assert_eq!(
+            store,
+            WallSprings::from_entries(
+                3000,
+                [
+                    (5, 0, spring(5.0)),
+                    (2000, 0, spring(2.0)),
+                    (2999, 1, spring(4.0))
+                ]
+            )
+        );
+    }
+
+    /// Candidates taken without a neighbour list have no taking (0): they are aligned at every
+    /// pass.
+    #[test]
+    fn candidates_without_a_taking_are_aligned_every_time() {
+        let mut store = WallSprings::from_entries(10, [(3, 0, spring(1.0))]);
+        assert_eq!(store.align(&keys(&[(1, 0)]), 0).0.len(), 2);
+        assert_eq!(store.align(&keys(&[(1, 0), (2, 0)]), 0).0.len(), 3);
     }
 
     #[test]
     fn a_reorder_moves_the_springs_with_their_particles() {
-        let n = PARTICLES_PER_CHUNK + 10;
+        let n = 1034;
         let mut store = WallSprings::from_entries(
             n,
             [
@@ -329,18 +286,18 @@ mod tests {
                 (n - 1, 1, spring(3.0)),
             ],
         );
+        let _ = store.align(&keys(&[(0, 0), (1, 0)]), new_taking());
         // Reverse the order and drop particle 5.
         let order: Vec<u32> = (0..n as u32).rev().filter(|&k| k != 5).collect();
         store.select(n, &order);
         let moved: Vec<_> = store.entries().collect();
         assert_eq!(moved, vec![(0, 1, spring(3.0)), (n - 2, 0, spring(1.0))]);
-        assert_eq!(store.begin_pass(n - 1).len(), 2);
+        assert_eq!(store.aligned_to, 0, "to be aligned again");
     }
 
     #[test]
-    #[should_panic(expected = "another particle count")]
-    fn a_pass_for_another_particle_count_is_refused() {
-        let mut store = WallSprings::new(10);
-        let _ = store.begin_pass(PARTICLES_PER_CHUNK + 1);
+    #[should_panic(expected = "wall spring of particle 10 of 10")]
+    fn a_spring_of_a_particle_past_the_count_is_refused() {
+        let _ = WallSprings::from_entries(10, [(10, 0, spring(1.0))]);
     }
 }

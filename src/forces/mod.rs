@@ -32,6 +32,7 @@ use crate::particles::{Particles, Rotation};
 use crate::periodic::Periodic;
 use crate::scatter::{OpenedReads, ParticleTokens, Scatter};
 use crate::thermal::{HeatSums, ThermalModel};
+use crate::wall_history::WallKey;
 
 mod lanes;
 mod pair_pass;
@@ -462,27 +463,27 @@ pub fn compute(
     };
     particles.force = forces;
     particles.dissipated = dissipated;
-    // Only the particles that may touch a wall have anything to add, unless heat comes from a
-    // laser or is exchanged with the walls, gas or surroundings: then every particle has. With
-    // heat, the particle pass takes the largest G_i / C_i of every chunk's particles, visited or
-    // not, at the chunk's end.
+    // Only the pairs that may touch have wall contacts to add. With heat from a laser, or
+    // exchanged with the walls, gas or surroundings, every particle has heat to add as well.
+    // With heat, the particle pass takes the largest G_i / C_i of every chunk's particles at
+    // the chunk's end.
     let every_particle = heat
         .as_ref()
         .is_some_and(|h| h.laser_power.is_some() || h.model.has_boundary_exchange());
-    let listed = (!every_particle).then_some(walls.particles.as_slice());
+    let walls = (&*walls, every_particle);
     // As for the pair pass: one compiled particle pass per combination of optional physics.
     let own = match (rotation.is_some(), heat.is_some()) {
         (false, false) => particle_pass::run::<false, false>(
-            model, interval, particles, rotation, heat, listed, parallel,
+            model, interval, particles, rotation, heat, walls, parallel,
         ),
         (false, true) => particle_pass::run::<false, true>(
-            model, interval, particles, rotation, heat, listed, parallel,
+            model, interval, particles, rotation, heat, walls, parallel,
         ),
         (true, false) => particle_pass::run::<true, false>(
-            model, interval, particles, rotation, heat, listed, parallel,
+            model, interval, particles, rotation, heat, walls, parallel,
         ),
         (true, true) => particle_pass::run::<true, true>(
-            model, interval, particles, rotation, heat, listed, parallel,
+            model, interval, particles, rotation, heat, walls, parallel,
         ),
     };
     pairs.merge(own)
@@ -495,19 +496,22 @@ fn set_weights(forces: &mut [DVec3], mass: &[f64], gravity: DVec3) {
     }
 }
 
-/// The particles that may touch a wall before the neighbour list's next rebuild: those whose
-/// overlap with some wall at the list's reference positions exceeds −skin. Between rebuilds no
-/// particle is more than half the skin from its reference position (the rebuild test,
-/// `NeighborList::moved_too_far`), so no other particle can touch a wall, nor hold a wall spring
-/// (which only a contact of the last step leaves). Without heat the particle pass visits these
-/// alone: on the LIGGGHTS bed about a tenth of the particles, where the others would only have
+/// The (particle, wall) pairs that may touch before the neighbour list's next rebuild: those
+/// whose overlap at the list's reference positions exceeds −skin. Between rebuilds no particle
+/// is more than half the skin from its reference position (the rebuild test,
+/// `NeighborList::moved_too_far`), so no other pair can touch, nor take a wall spring (which
+/// only a contact leaves). The particle pass visits these alone: on the LIGGGHTS bed about a
+/// tenth of the particles, each with the one wall it is near, where the others would only have
 /// been found apart (their weight is set by the drift).
 #[derive(Debug, Clone, Default)]
 pub struct WallCandidates {
     /// The [`NeighborList::generation`] the candidates were taken for (0: none).
     generation: u64,
-    /// Ascending particle indices.
-    particles: Vec<u32>,
+    /// Names this taking of the keys ([`crate::wall_history::new_taking`]; 0 without a list,
+    /// where they are taken at every pass).
+    taking: u64,
+    /// Ascending.
+    keys: Vec<WallKey>,
 }
 
 impl WallCandidates {
@@ -517,30 +521,57 @@ impl WallCandidates {
             return;
         }
         let reference = list.reference_positions();
-        // Without a list of these particles there is no bound on their travel: every one may
+        // Without a list of these particles there is no bound on their travel: every pair may
         // touch, and the candidates are taken anew at the next pass.
         let bounded = reference.len() == radius.len();
         // The whole skin, twice the bound, so that no rounding matters.
         let reach = -list.skin();
-        self.particles.clear();
-        self.particles.extend(
-            (0..radius.len())
-                .filter(|&k| {
-                    !bounded
-                        || model
-                            .walls
-                            .iter()
-                            .any(|wall| plane_overlap(wall, reference[k], radius[k]) > reach)
-                })
-                .map(|k| u32::try_from(k).expect("fewer than 2^32 particles")),
-        );
+        self.keys.clear();
+        for (k, &radius) in radius.iter().enumerate() {
+            for (w, wall) in model.walls.iter().enumerate() {
+                if !bounded || plane_overlap(wall, reference[k], radius) > reach {
+                    self.keys.push(WallKey::new(k, w));
+                }
+            }
+        }
         self.generation = if bounded { list.generation() } else { 0 };
+        self.taking = if bounded {
+            crate::wall_history::new_taking()
+        } else {
+            0
+        };
     }
 
     /// The candidates, ascending.
     #[must_use]
-    pub fn particles(&self) -> &[u32] {
-        &self.particles
+    pub fn keys(&self) -> &[WallKey] {
+        &self.keys
+    }
+
+    /// The name of this taking of the candidates (0: taken at every pass).
+    #[must_use]
+    pub fn taking(&self) -> u64 {
+        self.taking
+    }
+
+    /// The candidates `keys` (ascending), taken now: for tests, which choose them.
+    #[cfg(test)]
+    fn of(keys: impl IntoIterator<Item = (usize, usize)>) -> Self {
+        let keys: Vec<WallKey> = keys.into_iter().map(|(k, w)| WallKey::new(k, w)).collect();
+        assert!(keys.is_sorted_by(|a, b| a < b));
+        Self {
+            generation: 0,
+            taking: crate::wall_history::new_taking(),
+            keys,
+        }
+    }
+
+    /// Every (particle, wall) pair of `model` for `particles` particles, as without a list.
+    #[cfg(test)]
+    fn every(model: &Model, particles: usize) -> Self {
+        let mut candidates = Self::default();
+        candidates.refresh(model, &NeighborList::default(), &vec![0.0; particles]);
+        candidates
     }
 }
 
@@ -650,7 +681,7 @@ pub(in crate::forces) mod tests {
         model: &Model,
         particles: &mut Particles,
         rotation: &mut Rotation,
-        listed: Option<&[u32]>,
+        candidates: &WallCandidates,
     ) -> ForceSummary {
         particle_pass::run::<true, false>(
             model,
@@ -658,7 +689,7 @@ pub(in crate::forces) mod tests {
             particles,
             Some(rotation),
             None,
-            listed,
+            (candidates, false),
             false,
         )
     }
@@ -691,13 +722,14 @@ material = "m"
         )
     }
 
-    /// The particle pass tests every particle's finished force, listed or not, in every chunk,
+    /// The particle pass tests every particle's finished force, a wall candidate or not, in every chunk,
     /// and names the lowest particle whose force is NaN or infinite, on one thread and on the
     /// team; it finds none when all are finite. (The run leaves a step's closing kick to the
     /// next opening pass only when the pass found none: `Simulation::advance`.)
     #[test]
     fn the_particle_pass_names_the_lowest_particle_with_a_non_finite_force() {
-        // 13,500 spheres in 14 chunks, a layer of them nearest the plate: only those are listed.
+        // 13,500 spheres in 14 chunks, a layer of them nearest the plate: only those are
+        // candidates.
         let mut text = plate_scene("");
         text += "[[lattice]]\nmin_corner_m = [0.0, 0.0, 2e-5]\nmax_corner_m = [2.4e-3, 2.4e-3, 1.2e-3]\nradius_m = 2e-5\nspacing_m = 8e-5\nmaterial = \"m\"\n";
         let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
@@ -721,7 +753,9 @@ material = "m"
             "{} of {count}",
             listed.len()
         );
-        let pass = |broken: &[(usize, f64)], listed: Option<&[u32]>, parallel: bool| {
+        let near = WallCandidates::of(listed.iter().map(|&k| (k as usize, 0)));
+        let every = WallCandidates::every(&model, count);
+        let pass = |broken: &[(usize, f64)], candidates: &WallCandidates, parallel: bool| {
             let mut particles = particles.clone();
             set_weights(&mut particles.force, &particles.mass, model.gravity);
             for &(k, value) in broken {
@@ -733,7 +767,7 @@ material = "m"
                 &mut particles,
                 None,
                 None,
-                listed,
+                (candidates, false),
                 parallel,
             )
             .first_non_finite_force
@@ -760,12 +794,8 @@ material = "m"
         ];
         for (broken, expected) in cases {
             for parallel in [false, true] {
-                assert_eq!(
-                    pass(broken, Some(&listed), parallel),
-                    expected,
-                    "{broken:?}"
-                );
-                assert_eq!(pass(broken, None, parallel), expected, "{broken:?}");
+                assert_eq!(pass(broken, &near, parallel), expected, "{broken:?}");
+                assert_eq!(pass(broken, &every, parallel), expected, "{broken:?}");
             }
         }
     }
@@ -831,9 +861,10 @@ material = "m"
         assert!(checked.iter().all(|&n| n > 1000), "{checked:?}");
     }
 
-    /// A sphere off the plate that still holds the spring of its last contact with it takes
-    /// the particle pass's full path: the spring's energy is lost and the spring is gone. The
-    /// forces stay at the weights the drift set.
+    /// A sphere off the plate that still holds the spring of its last contact with it lets
+    /// the spring go: its energy is lost and the spring is gone, whether its pair is a wall
+    /// candidate or not (a spring is kept until a pass finds its pair apart). The forces stay at
+    /// the weights the drift set.
     #[test]
     fn a_sphere_off_the_wall_releases_its_spring_and_the_forces_stay_at_the_weights() {
         let text = plate_scene("")
@@ -848,24 +879,33 @@ radius_m = 2e-5
 material = "m"
 "#;
         let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
-        let (model, mut particles) = Model::build(&scene);
-        let mut rotation = Rotation::new(particles.len(), model.walls.len());
+        let (model, start) = Model::build(&scene);
         let held = TangentialSpring {
             history: DVec3::new(1e-9, 0.0, 0.0),
             spring_energy: 3e-15,
         };
-        rotation.wall_springs =
-            crate::wall_history::WallSprings::from_entries(particles.len(), [(0, 0, held)]);
-        set_weights(&mut particles.force, &particles.mass, model.gravity);
-        for listed in [None, Some([0, 1].as_slice())] {
-            let summary = wall_pass(&model, &mut particles, &mut rotation, listed);
-            assert_eq!(summary.max_overlap_ratio, 0.0);
-        }
-        assert_eq!(particles.dissipated, [held.spring_energy, 0.0]);
-        assert_eq!(rotation.wall_springs.entries().count(), 0);
-        for k in 0..2 {
-            assert_eq!(particles.force[k], particles.mass[k] * model.gravity);
-            assert_eq!(rotation.torque[k], DVec3::ZERO);
+        for candidates in [
+            WallCandidates::every(&model, start.len()),
+            WallCandidates::of([(0, 0), (1, 0)]),
+            WallCandidates::of([(1, 0)]),
+            WallCandidates::of([]),
+        ] {
+            let mut particles = start.clone();
+            let mut rotation = Rotation::new(particles.len(), model.walls.len());
+            rotation.wall_springs =
+                crate::wall_history::WallSprings::from_entries(particles.len(), [(0, 0, held)]);
+            set_weights(&mut particles.force, &particles.mass, model.gravity);
+            for _ in 0..2 {
+                let summary = wall_pass(&model, &mut particles, &mut rotation, &candidates);
+                assert_eq!(summary.max_overlap_ratio, 0.0);
+            }
+            let keys = candidates.keys().len();
+            assert_eq!(particles.dissipated, [held.spring_energy, 0.0], "{keys}");
+            assert_eq!(rotation.wall_springs.entries().count(), 0);
+            for k in 0..2 {
+                assert_eq!(particles.force[k], particles.mass[k] * model.gravity);
+                assert_eq!(rotation.torque[k], DVec3::ZERO);
+            }
         }
     }
 
@@ -933,7 +973,8 @@ material = "m"
         rotation.wall_springs = crate::wall_history::WallSprings::from_entries(count, entries);
         let before = (rotation.wall_springs.clone(), particles.clone());
         set_weights(&mut particles.force, &particles.mass, model.gravity);
-        wall_pass(&model, &mut particles, &mut rotation, None);
+        let every = WallCandidates::every(&model, count);
+        wall_pass(&model, &mut particles, &mut rotation, &every);
         let tables = model.friction.as_ref().expect("friction");
         let mut contacts = 0;
         for k in 0..count {
@@ -1041,11 +1082,11 @@ material = "m"
         assert_eq!(histories.entries(), 0);
     }
 
-    /// The wall candidates are the particles within the skin of a wall at the list's reference
-    /// positions (here the skin is 10 µm and the radius 20 µm), taken anew for a new build
-    /// only; and the particle pass over them gives bitwise what it gives over every particle.
+    /// The wall candidates are the (particle, wall) pairs within the skin at the list's
+    /// reference positions (here the skin is 10 µm and the radius 20 µm), taken anew for a new
+    /// build only; and the particle pass over them gives bitwise what it gives over every pair.
     #[test]
-    fn the_wall_candidates_are_the_particles_within_the_skin_of_a_wall() {
+    fn the_wall_candidates_are_the_pairs_within_the_skin() {
         let mut text = plate_scene("skin_m = 1e-5")
             + r#"
 [[walls]]
@@ -1073,20 +1114,31 @@ material = "m"
         list.build(&particles.position, &particles.radius);
         let mut candidates = WallCandidates::default();
         candidates.refresh(&model, &list, &particles.radius);
-        // The model keeps the scene's order.
-        assert_eq!(candidates.particles(), [0, 1, 4]);
-        // The same build: kept, even for other radii; a new build: taken anew.
-        candidates.refresh(&model, &list, &[2e-5, 2e-5, 1e-3, 2e-5, 2e-5]);
-        assert_eq!(candidates.particles().len(), 3);
+        // The model keeps the scene's order; each particle with the wall it is near.
+        let pairs = |c: &WallCandidates| -> Vec<(u32, u32)> {
+            c.keys()
+                .iter()
+                .map(|key| (key.particle, key.wall))
+                .collect()
+        };
+        assert_eq!(pairs(&candidates), [(0, 0), (1, 0), (4, 1)]);
+        let taking = candidates.taking();
+        assert_ne!(taking, 0);
+        // The same build: kept, even for other radii; a new build: taken anew (particle 2,
+        // now 1 mm across, reaches both walls).
+        let grown = [2e-5, 2e-5, 1e-3, 2e-5, 2e-5];
+        candidates.refresh(&model, &list, &grown);
+        assert_eq!((candidates.keys().len(), candidates.taking()), (3, taking));
         list.build(&particles.position, &particles.radius);
-        candidates.refresh(&model, &list, &[2e-5, 2e-5, 1e-3, 2e-5, 2e-5]);
-        assert_eq!(candidates.particles().len(), 4);
-        // The pass over the candidates and over every particle.
-        let pass = |listed: Option<&[u32]>| {
+        candidates.refresh(&model, &list, &grown);
+        assert_eq!(pairs(&candidates), [(0, 0), (1, 0), (2, 0), (2, 1), (4, 1)]);
+        assert_ne!(candidates.taking(), taking);
+        // The pass over the candidates and over every pair.
+        let pass = |candidates: &WallCandidates| {
             let mut particles = particles.clone();
             let mut rotation = Rotation::new(particles.len(), model.walls.len());
             set_weights(&mut particles.force, &particles.mass, model.gravity);
-            let summary = wall_pass(&model, &mut particles, &mut rotation, listed);
+            let summary = wall_pass(&model, &mut particles, &mut rotation, candidates);
             (
                 particles.force,
                 particles.dissipated,
@@ -1095,11 +1147,18 @@ material = "m"
             )
         };
         candidates.refresh(&model, &NeighborList::default(), &particles.radius);
-        assert_eq!(candidates.particles().len(), 5, "no list: every particle");
+        assert_eq!(
+            (candidates.keys().len(), candidates.taking()),
+            (10, 0),
+            "no list: every pair, taken at every pass"
+        );
         list.build(&particles.position, &particles.radius);
         candidates.refresh(&model, &list, &particles.radius);
-        let (all, listed) = (pass(None), pass(Some(candidates.particles())));
-        assert_eq!(format!("{all:?}"), format!("{listed:?}"));
+        let (all, near) = (
+            pass(&WallCandidates::every(&model, particles.len())),
+            pass(&candidates),
+        );
+        assert_eq!(format!("{all:?}"), format!("{near:?}"));
         // The touching sphere got the plate's push.
         assert!(all.0.iter().any(|f| f.z > 0.0));
     }

@@ -3,34 +3,38 @@
 //! `[thermal]` its boundary heat and laser power, and the wall overlaps for the run's guard;
 //! then it tests each chunk's finished forces for NaN and infinities (the guard's other input,
 //! [`ForceSummary::first_non_finite_force`]). Parallel over chunks of particles, each particle
-//! writing only its own entries, through accessors opened once per chunk. A chunk's wall
-//! contacts fill lanes of 16, whose laws run vectorised ([`super::wall_lanes`]); each lane names
-//! its particle and wall, a particle's walls fill consecutive lanes, and the write-back sums
-//! them in wall order ([`WallRound`]). A
-//! particle whose wall spring lets go (it left a wall) takes its walls one after the other
-//! instead, so that the energy the spring held is summed in the same order. Its boundary heat
-//! fills lanes of its own ([`crate::thermal::BoundaryLanes`], [`HeatRound`]).
+//! writing only its own entries, through accessors opened once per chunk.
+//!
+//! The wall contacts come from the wall candidates (`WallCandidates`: the (particle, wall)
+//! pairs that may touch before the next rebuild), whose springs the store keeps by candidate
+//! ([`crate::wall_history`]). A chunk's candidates fill lanes of 16 one after the other, each
+//! lane with its pair's overlap, motion and spring; a lane is kept for the kernel if its pair
+//! touches or holds a spring, and the next candidate's overwrites it otherwise, so the fill has
+//! no branch per candidate. The laws run vectorised ([`super::wall_lanes`]); the write-back
+//! sums each particle's lanes in wall order ([`WallRound`]), and a lane whose pair is apart
+//! (its spring lets go) adds the spring's energy to the lost energy in its place in that order.
+//! The boundary heat fills lanes of its own ([`crate::thermal::BoundaryLanes`], [`HeatRound`]).
 
 use glam::DVec3;
 
 use super::lanes::LANES;
-use super::wall_lanes::{self, WallInput, WallLanes, WallOutput, wall_friction};
-use super::{ForceSummary, ParticleReads, PassHeat, plane_overlap};
+use super::wall_lanes::{self, WallLanes, WallOutput};
+use super::{ForceSummary, ParticleReads, PassHeat, WallCandidates, plane_overlap};
 use crate::contact::tangential::TangentialSpring;
-use crate::model::{Model, Wall};
+use crate::model::Model;
 use crate::particles::{Particles, Rotation};
 use crate::scatter::{self, Member, Opened, ParticleChunk, PerParticle, Scatter};
 use crate::simd::InstructionSet;
+use crate::team::PARTICLES_PER_ITEM;
 use crate::thermal::{BoundaryLanes, HeatSums, ThermalModel};
-use crate::wall_history::{Chunk, PARTICLES_PER_CHUNK};
+use crate::wall_history::WallKey;
 
-/// The particle pass: the wall contacts (normal, and with rotation tangential and rolling),
-/// boundary heat and laser power, and the wall overlaps for the guard, over every particle or
-/// the `listed` ones (ascending; they must include every particle that touches a wall or holds a
-/// wall spring); then the finished forces of every particle, listed or not, tested for NaN and
-/// infinities. Each particle writes only its own entries. Compiled for one combination of
-/// optional physics: rotation with the wall springs (`ROTATION`) and conduction (`HEAT`); what
-/// it leaves out is ignored even if given.
+/// The particle pass: the wall contacts of the wall candidates `walls.0` (normal, and with
+/// rotation tangential and rolling), boundary heat and laser power of every particle if
+/// `walls.1` (else none), and the wall overlaps for the guard; then the finished forces of every
+/// particle tested for NaN and infinities. Each particle writes only its own entries. Compiled
+/// for one combination of optional physics: rotation with the wall springs (`ROTATION`) and
+/// conduction (`HEAT`); what it leaves out is ignored even if given.
 #[allow(clippy::too_many_lines)]
 pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     model: &Model,
@@ -38,7 +42,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     particles: &mut Particles,
     rotation: Option<&mut Rotation>,
     heat: Option<PassHeat<'_>>,
-    listed: Option<&[u32]>,
+    (candidates, every_particle): (&WallCandidates, bool),
     parallel: bool,
 ) -> ForceSummary {
     let _pass = crate::team::PassName::enter("particle pass (walls)");
@@ -46,7 +50,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     let mut dissipated = std::mem::take(&mut particles.dissipated);
     let state = &*particles;
     let count = state.len();
-    let (omega, torque, mut wall_springs) = match rotation {
+    let (omega, torque, wall_springs) = match rotation.filter(|_| ROTATION) {
         Some(r) => {
             let Rotation {
                 angular_velocity,
@@ -62,15 +66,34 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         }
         None => (None, None, None),
     };
-    // Each chunk of particles reads and writes its own wall springs (`wall_history`).
-    let mut chunks: Vec<Option<&mut Chunk>> = match wall_springs.as_deref_mut() {
-        Some(springs) => springs.begin_pass(count).iter_mut().map(Some).collect(),
-        None => (0..count.div_ceil(PARTICLES_PER_CHUNK))
-            .map(|_| None)
-            .collect(),
+    // The pairs to visit, with rotation each with its spring: the store's keys are the
+    // candidates', and any pair's that holds a spring without being one.
+    let (keys, mut springs) = match wall_springs {
+        Some(store) => {
+            let (keys, springs) = store.align(candidates.keys(), candidates.taking());
+            (keys, Some(springs))
+        }
+        None => (candidates.keys(), None),
     };
-    // The listed particles (those near a wall) lie spread over the arrays.
-    let prefetch = listed.is_some() && super::worth_prefetching(count);
+    // Each chunk of particles reads and writes the springs of its own pairs.
+    let mut chunks: Vec<ChunkWalls<'_>> = Vec::with_capacity(count.div_ceil(PARTICLES_PER_ITEM));
+    let mut rest = keys;
+    for c in 0..count.div_ceil(PARTICLES_PER_ITEM) {
+        let end = (c + 1) * PARTICLES_PER_ITEM;
+        let (own, after) = rest.split_at(rest.partition_point(|key| (key.particle as usize) < end));
+        let own_springs = springs.take().map(|all| {
+            let (own_springs, after) = all.split_at_mut(own.len());
+            springs = Some(after);
+            own_springs
+        });
+        chunks.push((own, own_springs));
+        rest = after;
+    }
+    assert!(
+        rest.is_empty(),
+        "wall candidates of particles past the {count} of the pass"
+    );
+    let prefetch = super::worth_prefetching(count);
     let force_out: Scatter<'_, DVec3, PerParticle> = Scatter::new(&mut forces);
     let lost_out: Scatter<'_, f64, PerParticle> = Scatter::new(&mut dissipated);
     let heat = heat.map(|h| ParticleHeat {
@@ -87,150 +110,58 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     let outputs = Outputs {
         force: force_out,
         lost: lost_out,
-        torque: torque.filter(|_| ROTATION),
+        torque,
     };
     let set = InstructionSet::detect();
-    // Known at compile time to be `None` where the instantiation leaves rotation out.
-    let friction = model.friction.as_ref().filter(|_| ROTATION);
     assert!(
-        !ROTATION || friction.is_some(),
+        !ROTATION || model.friction.is_some(),
         "a scene with rotation has friction tables (`Model::build`)"
     );
     let visit = |summary: &mut ForceSummary,
-                 springs: &mut Option<&mut Chunk>,
+                 (keys, springs): &mut ChunkWalls<'_>,
                  chunk: &ParticleChunk<'_>| {
-        let mut springs = springs.as_deref_mut().filter(|_| ROTATION);
+        let mut springs = springs.as_deref_mut();
         let heat = heat.as_ref().filter(|_| HEAT);
-        let reads = ParticleReads::open(state, omega.filter(|_| ROTATION), chunk);
+        let reads = ParticleReads::open(state, omega, chunk);
         let outputs = outputs.open(chunk);
         let mut round = WallRound::new(model);
-        // A listed pass (heat without laser or exchange, `forces::compute`) has no heat to add
-        // to a particle: its largest G_i / C_i is taken over the chunk's whole range below.
-        // (Reading each listed particle's sums here as well, spread over the arrays, held 28 %
-        // of this pass's samples on the heated 97.2k bed: docs/performance.md, fifty-second
-        // round.)
-        let mut heat_round = heat
-            .filter(|_| listed.is_none())
-            .map(|h| HeatRound::new(h, &model.walls));
-        // The chunk's listed particles lie spread over the arrays: each particle's lines are
-        // asked for `LISTED_AHEAD` particles before it is reached.
-        let mut ahead = chunk.windows().take(if prefetch { usize::MAX } else { 0 });
-        for window in ahead.by_ref().take(LISTED_AHEAD) {
-            prefetch_particle(reads, &outputs, window.owner());
-        }
-        for window in chunk.windows() {
-            if let Some(next) = ahead.next() {
-                prefetch_particle(reads, &outputs, next.owner());
+        // The candidates' particles lie spread over the arrays: each one's lines are asked
+        // for `LISTED_AHEAD` candidates before it is reached.
+        let ahead = |c: usize| {
+            if let Some(key) = keys.get(c + LISTED_AHEAD).filter(|_| prefetch) {
+                prefetch_particle(reads, &outputs, chunk.member(key.particle as usize));
             }
-            let particle = window.owner();
-            let k = particle.index();
-            let (position, radius) = (reads.position.get(particle), reads.radius.get(particle));
-            let overlap_with = |wall: &Wall| plane_overlap(wall, position, radius);
-            // Most particles touch no wall and hold no wall spring: their walls give nothing.
-            // (The wall path below would add zeros to their force, lost energy and torque, which
-            // changes no bit of a finite sum, and observe a zero overlap.)
-            let touching = model
-                .walls
-                .iter()
-                .filter(|wall| overlap_with(wall) > 0.0)
-                .count();
-            let holds = springs
-                .as_deref_mut()
-                .is_some_and(|chunk| chunk.holds_any(k));
-            if touching > 0 || holds {
-                let material = reads.material.get(particle);
-                let motion = (
-                    [radius, reads.mass.get(particle)],
-                    [
-                        reads.velocity.get(particle),
-                        reads
-                            .angular_velocity
-                            .map_or(DVec3::ZERO, |omega| omega.get(particle)),
-                    ],
+        };
+        for c in 0..LISTED_AHEAD.min(keys.len()) {
+            if prefetch {
+                prefetch_particle(reads, &outputs, chunk.member(keys[c].particle as usize));
+            }
+        }
+        for (c, key) in keys.iter().enumerate() {
+            ahead(c);
+            let held = springs
+                .as_deref()
+                .map_or_else(TangentialSpring::default, |springs| springs[c]);
+            let particle = chunk.member(key.particle as usize);
+            if round.candidate::<ROTATION>(model, reads, (particle, key.wall as usize), (c, held)) {
+                round.write_back::<ROTATION>(
+                    model,
+                    (set, interval),
+                    &outputs,
+                    springs.as_deref_mut(),
+                    summary,
                 );
-                let lets_go = holds
-                    && touching < model.walls.len()
-                    && springs.as_deref().is_some_and(|chunk| {
-                        chunk.holds_any_where(k, |w| overlap_with(&model.walls[w]) <= 0.0)
-                    });
-                let max_overlap = if lets_go {
-                    // A wall spring lets go (rare: a particle leaving a wall): the lanes' order
-                    // of the sums would not hold the energy it releases, so this particle's walls
-                    // are taken one after the other, after what the lanes hold is written.
-                    round.write_back::<ROTATION>(
-                        model,
-                        (set, interval),
-                        &outputs,
-                        springs.as_deref_mut(),
-                    );
-                    round.finish(&outputs);
-                    let mut sums = WallSums::default();
-                    let mut max_overlap: f64 = 0.0;
-                    for (w, wall) in model.walls.iter().enumerate() {
-                        let overlap = overlap_with(wall);
-                        let held = springs
-                            .as_deref_mut()
-                            .map_or_else(TangentialSpring::default, |chunk| chunk.take(k, w));
-                        if overlap <= 0.0 {
-                            // The spring vanishes with the contact: what it held is lost.
-                            sums.lost += held.spring_energy;
-                            continue;
-                        }
-                        max_overlap = max_overlap.max(overlap);
-                        let input = wall_input(model, (w, material), overlap, motion, held);
-                        let out = if ROTATION && input.friction.rolling != 0.0 {
-                            wall_lanes::wall_step::<ROTATION, true>(interval, &input)
-                        } else {
-                            wall_lanes::wall_step::<ROTATION, false>(interval, &input)
-                        };
-                        sums.add::<ROTATION>(&out, wall.normal);
-                        if let Some(chunk) = springs.as_deref_mut() {
-                            chunk.keep(k, w, out.spring);
-                        }
-                    }
-                    sums.write(&outputs, particle);
-                    max_overlap
-                } else {
-                    // No spring lets go: every wall with a spring touches, and the others hold
-                    // none to take.
-                    let mut max_overlap: f64 = 0.0;
-                    for (w, wall) in model.walls.iter().enumerate() {
-                        let overlap = overlap_with(wall);
-                        if overlap <= 0.0 {
-                            continue;
-                        }
-                        // (`f64::max` without its NaN select: a NaN overlap fails both tests.)
-                        if overlap > max_overlap {
-                            max_overlap = overlap;
-                        }
-                        let held = springs
-                            .as_deref_mut()
-                            .map_or_else(TangentialSpring::default, |chunk| chunk.take(k, w));
-                        if round.contact::<ROTATION>(
-                            model,
-                            (particle, material),
-                            w,
-                            (overlap, motion, held),
-                        ) {
-                            round.write_back::<ROTATION>(
-                                model,
-                                (set, interval),
-                                &outputs,
-                                springs.as_deref_mut(),
-                            );
-                        }
-                    }
-                    max_overlap
-                };
-                summary.observe_overlap_of(max_overlap, radius, k);
-            }
-            if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
-                heat_round.add(h, state, set, particle);
             }
         }
-        round.write_back::<ROTATION>(model, (set, interval), &outputs, springs);
+        round.write_back::<ROTATION>(model, (set, interval), &outputs, springs, summary);
         round.finish(&outputs);
-        if let Some((h, heat_round)) = heat.zip(heat_round.as_mut()) {
+        // Without laser and exchange no particle has heat to add: its largest G_i / C_i is
+        // taken over the chunk's whole range below.
+        if let Some(h) = heat.filter(|_| every_particle) {
+            let mut heat_round = HeatRound::new(h, &model.walls);
+            for window in chunk.windows() {
+                heat_round.add(h, state, set, window.owner());
+            }
             heat_round.finish(h, set);
         }
         // With heat, the largest G_i / C_i (M.49) of the chunk's range, from the sums as they
@@ -245,7 +176,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
             summary.max_heat_rate = summary.max_heat_rate.max(rate);
         }
         // The chunk's forces are finished (the walls were the last to add): every particle of
-        // its range is tested, listed or not, while the chunk is at hand.
+        // its range is tested, visited or not, while the chunk is at hand.
         let found = outputs.force.inspect_chunk(
             chunk,
             |forces, first| crate::integrate::first_non_finite_of(first, forces),
@@ -254,9 +185,15 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         summary.first_non_finite_force =
             crate::integrate::lowest_particle(summary.first_non_finite_force, found);
     };
+    // Windows only for the heat of every particle; the wall contacts come from the candidates.
+    let listed = if HEAT && every_particle {
+        None
+    } else {
+        Some(&[][..])
+    };
     let summary = scatter::for_each_chunk(
         count,
-        PARTICLES_PER_CHUNK,
+        PARTICLES_PER_ITEM,
         listed,
         &mut chunks,
         parallel,
@@ -265,24 +202,24 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         ForceSummary::merge,
     );
     drop(chunks);
-    if let Some(springs) = wall_springs {
-        springs.end_pass();
-    }
     particles.force = forces;
     particles.dissipated = dissipated;
     summary
 }
 
-/// How many listed particles ahead the particle pass asks for a particle's lines, where it
+/// A chunk's wall pairs, ascending, and with rotation their springs (one per pair).
+type ChunkWalls<'a> = (&'a [WallKey], Option<&'a mut [TangentialSpring]>);
+
+/// How many wall candidates ahead the particle pass asks for a candidate's lines, where it
 /// prefetches: on the 97.2k LIGGGHTS bed at 1 thread, 8 ahead made the step 1.02-1.04 times
-/// faster than asking for all of a chunk's listed particles at once (two sets of 6 pairs of runs
+/// faster than asking for all of a chunk's particles near a wall at once (two sets of 6 pairs of runs
 /// at once, `benches/paired.sh`), 16 no faster than 8 and 4 no faster either
 /// (docs/performance.md, forty-eighth round).
 const LISTED_AHEAD: usize = 8;
 
 /// Asks the cache for the lines of `particle`'s position, radius, velocity and force, and
-/// with rotation its spin and torque: what its wall contacts read and write. The listed
-/// particles (those near a wall) are spread over the arrays: on a bed larger than the cache
+/// with rotation its spin and torque: what its wall contacts read and write. The wall
+/// candidates' particles are spread over the arrays: on a bed larger than the cache
 /// each one's lines were otherwise missed one after the other (docs/performance.md,
 /// thirty-fourth round).
 #[inline(always)]
@@ -398,35 +335,6 @@ fn finish_particle(heat: &ParticleHeat<'_>, particle: Member<'_>, outside: Optio
     }
 }
 
-/// A particle's `[radius (m), mass (kg)]` and `[velocity (m/s), angular velocity (rad/s)]`
-/// (zero without rotation), as its wall contacts take them.
-type Motion = ([f64; 2], [DVec3; 2]);
-
-/// The laws' input for a particle of `material` touching `wall` with `overlap` \[m\], its
-/// `motion` and the spring `held` the last pass left.
-#[inline(always)]
-fn wall_input(
-    model: &Model,
-    (wall, material): (usize, u16),
-    overlap: f64,
-    ([radius, mass], [velocity, angular_velocity]): Motion,
-    held: TangentialSpring,
-) -> WallInput {
-    let params = model.wall_params(wall, material);
-    WallInput {
-        overlap,
-        into_domain: model.walls[wall].normal,
-        radius,
-        mass,
-        velocity,
-        effective_modulus: params.effective_modulus,
-        damping_ratio: params.damping_ratio,
-        angular_velocity,
-        friction: wall_friction(model, wall, material),
-        held,
-    }
-}
-
 /// The per-particle arrays the wall contacts add into.
 struct Outputs<'a> {
     force: Scatter<'a, DVec3, PerParticle>,
@@ -485,17 +393,19 @@ impl WallSums {
     }
 }
 
-/// The wall contacts of a chunk's particles on their way through the wall kernel: the lanes
-/// being filled with the particle and wall of each, and the sums of the particle being written
-/// back (a particle's contacts may straddle two rounds). A particle's contacts fill consecutive
-/// lanes in the order of its walls, so its sums are complete when a lane of the next particle
-/// comes, or the chunk ends.
+/// The wall contacts of a chunk's candidates on their way through the wall kernel: the lanes
+/// being filled with the particle, wall and spring slot of each, and the sums of the particle
+/// being written back (a particle's contacts may straddle two rounds). A particle's candidates
+/// fill consecutive lanes in the order of its walls, so its sums are complete when a lane of the
+/// next particle comes, or the chunk ends.
 struct WallRound<'c> {
     lanes: WallLanes,
+    /// The lanes kept for the kernel; the lane at `filled` is being filled.
     filled: usize,
-    /// The particle and wall of each filled lane.
+    /// The particle, wall and spring slot (the candidate's place in its chunk) of each lane.
     particles: Vec<Member<'c>>,
     walls: [usize; LANES],
+    slots: [usize; LANES],
     /// The particle whose sums are being formed, and its sums so far.
     open: Option<(Member<'c>, WallSums)>,
 }
@@ -508,44 +418,65 @@ impl<'c> WallRound<'c> {
             filled: 0,
             particles: Vec::with_capacity(LANES),
             walls: [0; LANES],
+            slots: [0; LANES],
             open: None,
         }
     }
 
-    /// `particle` (of `material`) touches wall `wall` with `(overlap, motion, held)` (as
-    /// [`wall_input`] takes them): its laws go into the next lane. Returns whether the lanes
-    /// are full, to be written back before the next contact.
+    /// The candidate pair of `particle` and wall `wall`, the `slot`-th of its chunk, holding
+    /// the spring `held` from the last pass: its overlap, motion and spring go into the next
+    /// lane, which is kept if the pair touches or holds a spring (without `FRICTION`: if it
+    /// touches). Returns whether the lanes are full, to be written back before the next
+    /// candidate.
     #[inline(always)]
-    fn contact<const FRICTION: bool>(
+    fn candidate<const FRICTION: bool>(
         &mut self,
         model: &Model,
-        (particle, material): (Member<'c>, u16),
-        wall: usize,
-        (overlap, (size, motion), held): (f64, Motion, TangentialSpring),
+        reads: ParticleReads<'_, 'c>,
+        (particle, wall): (Member<'c>, usize),
+        (slot, held): (usize, TangentialSpring),
     ) -> bool {
         let lane = self.filled;
+        let radius = reads.radius.get(particle);
+        let overlap = plane_overlap(&model.walls[wall], reads.position.get(particle), radius);
         // With one wall and one material the lanes hold its normal and parameters already.
         if !self.lanes.uniform_wall() {
+            let material = reads.material.get(particle);
             self.lanes
                 .set_model_wall::<FRICTION>(lane, model, wall, material);
         }
-        self.lanes
-            .set_motion::<FRICTION>(lane, overlap, size, motion, held);
+        let spin = reads
+            .angular_velocity
+            .map_or(DVec3::ZERO, |omega| omega.get(particle));
+        self.lanes.set_motion::<FRICTION>(
+            lane,
+            overlap,
+            [radius, reads.mass.get(particle)],
+            [reads.velocity.get(particle), spin],
+            held,
+        );
         self.walls[lane] = wall;
+        self.slots[lane] = slot;
+        // (A lane left is overwritten by the next candidate's: a length, not a branch.)
+        self.particles.truncate(lane);
         self.particles.push(particle);
-        self.filled += 1;
+        // (A NaN overlap touches not: as ever, such a particle is found by the guard.)
+        let kept = overlap > 0.0 || (FRICTION && held != TangentialSpring::default());
+        self.filled += usize::from(kept);
         self.filled == LANES
     }
 
-    /// Runs the laws of the filled lanes and writes them back in order: each particle's force,
-    /// lost energy and torque summed over its walls and added once, its springs kept. The last
-    /// particle's sums stay open ([`Self::finish`]).
+    /// Runs the laws of the kept lanes and writes them back in order: each particle's force,
+    /// lost energy and torque summed over its walls and added once, its springs kept, its
+    /// overlaps observed for the guard. A lane whose pair is apart lets its spring go: its
+    /// energy is lost. The last particle's sums stay open ([`Self::finish`]).
     fn write_back<const FRICTION: bool>(
         &mut self,
         model: &Model,
         (set, interval): (InstructionSet, f64),
         outputs: &OpenOutputs<'_, 'c>,
-        mut springs: Option<&mut Chunk>,
+        mut springs: Option<&mut [TangentialSpring]>,
+        summary: &mut ForceSummary,
     ) {
         if self.filled == 0 {
             return;
@@ -557,7 +488,7 @@ impl<'c> WallRound<'c> {
             Some((particle, sums)) => (Some(particle), sums),
             None => (None, WallSums::default()),
         };
-        for (lane, &particle) in self.particles.iter().enumerate() {
+        for (lane, &particle) in self.particles.iter().enumerate().take(self.filled) {
             if open.is_none_or(|open| open.index() != particle.index()) {
                 if let Some(done) = open {
                     sums.write(outputs, done);
@@ -565,14 +496,31 @@ impl<'c> WallRound<'c> {
                 open = Some(particle);
                 sums = WallSums::default();
             }
-            let wall = self.walls[lane];
-            let out = self.lanes.output::<FRICTION>(lane);
-            sums.add::<FRICTION>(&out, model.walls[wall].normal);
-            if let Some(chunk) = springs.as_deref_mut().filter(|_| FRICTION) {
-                chunk.keep(particle.index(), wall, out.spring);
+            let (overlap, radius, held_energy) = self.lanes.taken(lane);
+            let spring = if overlap > 0.0 {
+                let out = self.lanes.output::<FRICTION>(lane);
+                sums.add::<FRICTION>(&out, model.walls[self.walls[lane]].normal);
+                summary.observe_overlap_of(overlap, radius, particle.index());
+                // A spring equal to none is stored as none (+0, not −0), as the last pass
+                // will find it.
+                if out.spring == TangentialSpring::default() {
+                    TangentialSpring::default()
+                } else {
+                    out.spring
+                }
+            } else {
+                // Apart, with a spring from the last pass: the spring vanishes with the
+                // contact, and what it held is lost.
+                sums.lost += held_energy;
+                summary.observe_overlap_of(0.0, radius, particle.index());
+                TangentialSpring::default()
+            };
+            if let Some(springs) = springs.as_deref_mut().filter(|_| FRICTION) {
+                springs[self.slots[lane]] = spring;
             }
         }
         self.open = open.map(|particle| (particle, sums));
+        // (Past the kept lanes, at most a candidate's left lane.)
         self.particles.clear();
         self.filled = 0;
     }

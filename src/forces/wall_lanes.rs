@@ -302,6 +302,13 @@ impl WallLanes {
         }
     }
 
+    /// Lane `i`'s overlap \[m\], radius \[m\] and, with friction, the energy of the spring it
+    /// held \[J\] (stale without).
+    #[inline(always)]
+    pub(super) fn taken(&self, i: usize) -> (f64, f64, f64) {
+        (self.overlap[i], self.radius[i], self.held_energy[i])
+    }
+
     /// What the laws gave lane `i` (after [`run`]).
     #[inline(always)]
     pub(super) fn output<const FRICTION: bool>(&self, i: usize) -> WallOutput {
