@@ -124,26 +124,24 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         let heat = heat.as_ref().filter(|_| HEAT);
         let reads = ParticleReads::open(state, omega, chunk);
         let outputs = outputs.open(chunk);
-        let mut round = WallRound::new(model);
+        let mut round = WallRound::new(model, chunk);
         // The candidates' particles lie spread over the arrays: each one's lines are asked
         // for `LISTED_AHEAD` candidates before it is reached.
-        let ahead = |c: usize| {
-            if let Some(key) = keys.get(c + LISTED_AHEAD).filter(|_| prefetch) {
+        if prefetch {
+            for key in keys.iter().take(LISTED_AHEAD) {
                 prefetch_particle(reads, &outputs, chunk.member(key.particle as usize));
             }
-        };
-        for c in 0..LISTED_AHEAD.min(keys.len()) {
-            if prefetch {
-                prefetch_particle(reads, &outputs, chunk.member(keys[c].particle as usize));
-            }
         }
-        for (c, key) in keys.iter().enumerate() {
-            ahead(c);
-            let held = springs
-                .as_deref()
-                .map_or_else(TangentialSpring::default, |springs| springs[c]);
-            let particle = chunk.member(key.particle as usize);
-            if round.candidate::<ROTATION>(model, reads, (particle, key.wall as usize), (c, held)) {
+        let ahead = prefetch.then_some(&outputs);
+        let mut next = 0;
+        while next < keys.len() {
+            next = round.fill::<ROTATION>(
+                model,
+                (reads, chunk, ahead),
+                (keys, springs.as_deref()),
+                next,
+            );
+            if round.full() {
                 round.write_back::<ROTATION>(
                     model,
                     (set, interval),
@@ -400,10 +398,10 @@ impl WallSums {
 /// next particle comes, or the chunk ends.
 struct WallRound<'c> {
     lanes: WallLanes,
-    /// The lanes kept for the kernel; the lane at `filled` is being filled.
+    /// The lanes kept for the kernel.
     filled: usize,
     /// The particle, wall and spring slot (the candidate's place in its chunk) of each lane.
-    particles: Vec<Member<'c>>,
+    particles: [Member<'c>; LANES],
     walls: [usize; LANES],
     slots: [usize; LANES],
     /// The particle whose sums are being formed, and its sums so far.
@@ -411,59 +409,89 @@ struct WallRound<'c> {
 }
 
 impl<'c> WallRound<'c> {
-    /// An empty round for the wall contacts of `model`.
-    fn new(model: &Model) -> Self {
+    /// An empty round for the wall contacts of `model` in `chunk`.
+    fn new(model: &Model, chunk: &ParticleChunk<'c>) -> Self {
         Self {
             lanes: WallLanes::for_model(model),
             filled: 0,
-            particles: Vec::with_capacity(LANES),
+            // (A placeholder: a lane's particle is set with the lane.)
+            particles: [chunk.member(chunk.range().start); LANES],
             walls: [0; LANES],
             slots: [0; LANES],
             open: None,
         }
     }
 
-    /// The candidate pair of `particle` and wall `wall`, the `slot`-th of its chunk, holding
-    /// the spring `held` from the last pass: its overlap, motion and spring go into the next
-    /// lane, which is kept if the pair touches or holds a spring (without `FRICTION`: if it
-    /// touches). Returns whether the lanes are full, to be written back before the next
-    /// candidate.
+    /// Whether every lane is kept: the round must be written back before the next fill.
+    fn full(&self) -> bool {
+        self.filled == LANES
+    }
+
+    /// Fills the lanes from the chunk's candidates `keys[from..]` (with `FRICTION`, `springs`
+    /// holds the spring of each from the last pass) until every lane is kept or the candidates
+    /// end, and returns where it stopped. Each candidate's overlap, motion and spring go into
+    /// the next lane, which is kept if the pair touches or holds a spring (without `FRICTION`:
+    /// if it touches); a lane not kept is overwritten by the next candidate's, so the fill has
+    /// no branch per candidate. With `ahead`, each candidate's lines are asked for
+    /// [`LISTED_AHEAD`] candidates before it is reached.
     #[inline(always)]
-    fn candidate<const FRICTION: bool>(
+    fn fill<const FRICTION: bool>(
         &mut self,
         model: &Model,
-        reads: ParticleReads<'_, 'c>,
-        (particle, wall): (Member<'c>, usize),
-        (slot, held): (usize, TangentialSpring),
-    ) -> bool {
-        let lane = self.filled;
-        let radius = reads.radius.get(particle);
-        let overlap = plane_overlap(&model.walls[wall], reads.position.get(particle), radius);
-        // With one wall and one material the lanes hold its normal and parameters already.
-        if !self.lanes.uniform_wall() {
-            let material = reads.material.get(particle);
-            self.lanes
-                .set_model_wall::<FRICTION>(lane, model, wall, material);
+        (reads, chunk, ahead): (
+            ParticleReads<'_, 'c>,
+            &ParticleChunk<'c>,
+            Option<&OpenOutputs<'_, 'c>>,
+        ),
+        (keys, springs): (&[WallKey], Option<&[TangentialSpring]>),
+        from: usize,
+    ) -> usize {
+        let springs = springs.filter(|_| FRICTION).unwrap_or(&[]);
+        assert!(!FRICTION || springs.len() == keys.len());
+        let uniform = self.lanes.uniform_wall();
+        let mut filled = self.filled;
+        let mut c = from;
+        while c < keys.len() && filled < LANES {
+            if let (Some(outputs), Some(key)) = (ahead, keys.get(c + LISTED_AHEAD)) {
+                prefetch_particle(reads, outputs, chunk.member(key.particle as usize));
+            }
+            let key = keys[c];
+            let particle = chunk.member(key.particle as usize);
+            let wall = key.wall as usize;
+            let held = if FRICTION {
+                springs[c]
+            } else {
+                TangentialSpring::default()
+            };
+            let radius = reads.radius.get(particle);
+            let overlap = plane_overlap(&model.walls[wall], reads.position.get(particle), radius);
+            // With one wall and one material the lanes hold its normal and parameters already.
+            if !uniform {
+                let material = reads.material.get(particle);
+                self.lanes
+                    .set_model_wall::<FRICTION>(filled, model, wall, material);
+            }
+            let spin = match reads.angular_velocity {
+                Some(omega) if FRICTION => omega.get(particle),
+                _ => DVec3::ZERO,
+            };
+            self.lanes.set_motion::<FRICTION>(
+                filled,
+                overlap,
+                [radius, reads.mass.get(particle)],
+                [reads.velocity.get(particle), spin],
+                held,
+            );
+            self.particles[filled] = particle;
+            self.walls[filled] = wall;
+            self.slots[filled] = c;
+            // (A NaN overlap touches not: as ever, such a particle is found by the guard.)
+            let kept = overlap > 0.0 || (FRICTION && held != TangentialSpring::default());
+            filled += usize::from(kept);
+            c += 1;
         }
-        let spin = reads
-            .angular_velocity
-            .map_or(DVec3::ZERO, |omega| omega.get(particle));
-        self.lanes.set_motion::<FRICTION>(
-            lane,
-            overlap,
-            [radius, reads.mass.get(particle)],
-            [reads.velocity.get(particle), spin],
-            held,
-        );
-        self.walls[lane] = wall;
-        self.slots[lane] = slot;
-        // (A lane left is overwritten by the next candidate's: a length, not a branch.)
-        self.particles.truncate(lane);
-        self.particles.push(particle);
-        // (A NaN overlap touches not: as ever, such a particle is found by the guard.)
-        let kept = overlap > 0.0 || (FRICTION && held != TangentialSpring::default());
-        self.filled += usize::from(kept);
-        self.filled == LANES
+        self.filled = filled;
+        c
     }
 
     /// Runs the laws of the kept lanes and writes them back in order: each particle's force,
@@ -520,8 +548,6 @@ impl<'c> WallRound<'c> {
             }
         }
         self.open = open.map(|particle| (particle, sums));
-        // (Past the kept lanes, at most a candidate's left lane.)
-        self.particles.clear();
         self.filled = 0;
     }
 
