@@ -11,8 +11,6 @@
 //! anew, [`WallSprings::align`] carries the springs over to the new keys by a merge. A reorder
 //! of the particles renumbers and re-sorts the keys, and the next pass aligns them again.
 
-use std::sync::atomic::{AtomicU64, Ordering};
-
 use crate::contact::tangential::TangentialSpring;
 
 /// A particle-wall pair: particle index, then wall index, the order the pass visits them in.
@@ -42,16 +40,6 @@ fn index(k: usize) -> u32 {
     u32::try_from(k).expect("fewer than 2^32 particles and walls")
 }
 
-/// Names one taking of a set of keys, unique over the process, so that a store aligned to one
-/// set of candidates is never taken for aligned to another (0: aligned to none).
-static TAKINGS: AtomicU64 = AtomicU64::new(1);
-
-/// A fresh name for a set of keys just taken ([`WallSprings::align`]).
-#[must_use]
-pub fn new_taking() -> u64 {
-    TAKINGS.fetch_add(1, Ordering::Relaxed)
-}
-
 /// The wall springs of every particle, one slot per key (see the module documentation). Two
 /// stores are equal when they hold the same non-zero springs, whatever their zero slots.
 #[derive(Debug, Clone, Default)]
@@ -60,8 +48,8 @@ pub struct WallSprings {
     keys: Vec<WallKey>,
     /// The spring of each key (zero where the pair holds none).
     springs: Vec<TangentialSpring>,
-    /// The taking of the candidates the keys were aligned to (0: none since the last change
-    /// from outside the pass).
+    /// The taking of the candidates the keys were aligned to (the neighbour list's generation;
+    /// 0: none since the last change from outside the pass).
     aligned_to: u64,
 }
 
@@ -149,7 +137,8 @@ impl WallSprings {
         *self = Self::from_entries(order.len(), kept);
     }
 
-    /// Makes the keys those of `candidates` (ascending, named by `taking`, [`new_taking`]),
+    /// Makes the keys those of `candidates` (ascending, named by `taking`: the generation of the
+    /// neighbour-list build they were taken for, unique over the process, 0 for none),
     /// and those of any spring held by a pair not among them (which cannot touch a wall before
     /// the next build, so that the pass finds it apart and books its energy: none should be
     /// left, but none is lost either), each with the spring it held. Does nothing if the keys
@@ -223,7 +212,7 @@ mod tests {
             ],
         );
         let candidates = keys(&[(5, 0), (6, 0), (2000, 0), (2999, 1)]);
-        let taking = new_taking();
+        let taking = 1;
         let (aligned, springs) = store.align(&candidates, taking);
         assert_eq!(
             aligned,
@@ -249,7 +238,7 @@ mod tests {
         assert_eq!(store.get(7, 1), zero);
         assert!((store.spring_energy() - 45.0).abs() < 1e-12);
         // A new taking without particle 2000: its spring stays, as a key of its own.
-        let (aligned, springs) = store.align(&keys(&[(5, 0), (2999, 1)]), new_taking());
+        let (aligned, springs) = store.align(&keys(&[(5, 0), (2999, 1)]), 2);
         assert_eq!(aligned, keys(&[(5, 0), (2000, 0), (2999, 1)]));
         assert_eq!(springs, [spring(5.0), spring(2.0), spring(4.0)]);
         // Zero slots do not make two stores differ.
@@ -286,7 +275,7 @@ mod tests {
                 (n - 1, 1, spring(3.0)),
             ],
         );
-        let _ = store.align(&keys(&[(0, 0), (1, 0)]), new_taking());
+        let _ = store.align(&keys(&[(0, 0), (1, 0)]), 1);
         // Reverse the order and drop particle 5.
         let order: Vec<u32> = (0..n as u32).rev().filter(|&k| k != 5).collect();
         store.select(n, &order);

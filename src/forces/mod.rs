@@ -505,11 +505,9 @@ fn set_weights(forces: &mut [DVec3], mass: &[f64], gravity: DVec3) {
 /// been found apart (their weight is set by the drift).
 #[derive(Debug, Clone, Default)]
 pub struct WallCandidates {
-    /// The [`NeighborList::generation`] the candidates were taken for (0: none).
+    /// The [`NeighborList::generation`] the candidates were taken for (0: none, without a
+    /// list, where they are taken at every pass).
     generation: u64,
-    /// Names this taking of the keys ([`crate::wall_history::new_taking`]; 0 without a list,
-    /// where they are taken at every pass).
-    taking: u64,
     /// Ascending.
     keys: Vec<WallKey>,
 }
@@ -535,11 +533,6 @@ impl WallCandidates {
             }
         }
         self.generation = if bounded { list.generation() } else { 0 };
-        self.taking = if bounded {
-            crate::wall_history::new_taking()
-        } else {
-            0
-        };
     }
 
     /// The candidates, ascending.
@@ -548,10 +541,12 @@ impl WallCandidates {
         &self.keys
     }
 
-    /// The name of this taking of the candidates (0: taken at every pass).
+    /// The name of this taking of the candidates, the list build's generation (unique over the
+    /// process; 0: taken at every pass), which the spring store aligns to
+    /// ([`crate::wall_history::WallSprings::align`]).
     #[must_use]
     pub fn taking(&self) -> u64 {
-        self.taking
+        self.generation
     }
 
     /// The candidates `keys` (ascending), taken now: for tests, which choose them.
@@ -559,9 +554,9 @@ impl WallCandidates {
     fn of(keys: impl IntoIterator<Item = (usize, usize)>) -> Self {
         let keys: Vec<WallKey> = keys.into_iter().map(|(k, w)| WallKey::new(k, w)).collect();
         assert!(keys.is_sorted_by(|a, b| a < b));
+        // (No list build: taken, and aligned to, at every pass.)
         Self {
             generation: 0,
-            taking: crate::wall_history::new_taking(),
             keys,
         }
     }
