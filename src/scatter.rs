@@ -800,8 +800,8 @@ impl<'v, T: Copy> Opened<'_, 'v, T, PerParticle> {
 }
 
 impl<'v, T> Opened<'_, 'v, T, PerParticle> {
-    /// `inspect(elements, argument)` on the elements of every particle in `chunk`'s range (the
-    /// listed ones and those between them), as one slice: what a pass over particles tests at
+    /// `inspect(elements, argument)` on the elements of every particle in `chunk`'s range
+    /// (windowed or not), as one slice: what a pass over particles tests at
     /// the end of a chunk (the particle pass's test of the finished forces for NaN and
     /// infinities, `forces::particle_pass`). A function and a `'static` argument, not a closure,
     /// as for [`Opened::update_own`]: `inspect` cannot reach this scatter, so nothing writes the
@@ -1002,8 +1002,9 @@ impl<'s, 'v, T: Copy> OpenedReads<'s, 'v, T> {
 }
 
 /// Calls `visit(partial, state, chunk)` once for every chunk of `chunk_len` consecutive
-/// particles of `0..count`, which hands out a window for each of its particles (with `listed`:
-/// each it names) in ascending order, with the chunk's own `states[c]` (so a visit may keep
+/// particles of `0..count`, which hands out a window for each of its particles in ascending
+/// order (with `windows`; without, none: the visit reaches particles by tokens of its own
+/// list, [`ParticleChunk::member`]), with the chunk's own `states[c]` (so a visit may keep
 /// per-chunk data sorted by particle) and the chunk's own `partial` (from `identity`), which the
 /// visit updates in place, the chunks in parallel when `parallel`. The partials are reduced with
 /// `merge` (associative and commutative, for the result not to depend on the thread count), as
@@ -1012,13 +1013,12 @@ impl<'s, 'v, T: Copy> OpenedReads<'s, 'v, T> {
 /// gathered over particles).
 ///
 /// # Panics
-/// If `states` does not hold one state per chunk, with 2^32 particles or more, or if `listed`
-/// is not strictly ascending below `count`.
+/// If `states` does not hold one state per chunk, or with 2^32 particles or more.
 #[allow(clippy::too_many_arguments)]
 pub fn for_each_chunk<S, R, V, M>(
     count: usize,
     chunk_len: usize,
-    listed: Option<&[u32]>,
+    windows: bool,
     states: &mut [S],
     parallel: bool,
     identity: R,
@@ -1040,25 +1040,11 @@ where
         u32::try_from(count).is_ok(),
         "{count} particles: a particle's token holds its index in 32 bits"
     );
-    // Strictly ascending: no particle is named twice (the windows' safety rests on it).
-    assert!(
-        listed.is_none_or(|listed| listed.is_sorted_by(|a, b| a < b)
-            && listed.last().is_none_or(|&k| (k as usize) < count)),
-        "the listed particles must be strictly ascending and below {count}"
-    );
     // A chunk's particles add into the partial they are given.
     let chunk = |mut partial: R, c: usize, state: &mut S| {
         let range = c * chunk_len..((c + 1) * chunk_len).min(count);
-        let particles = match listed {
-            None => ChunkParticles::Range(range.clone()),
-            Some(listed) => {
-                let first = listed.partition_point(|&k| (k as usize) < range.start);
-                let end = listed.partition_point(|&k| (k as usize) < range.end);
-                ChunkParticles::Listed(&listed[first..end])
-            }
-        };
         let chunk = ParticleChunk {
-            particles,
+            windows,
             range,
             count,
             brand: PhantomData,
@@ -1081,8 +1067,10 @@ where
 /// as a window of its own.
 #[derive(Debug)]
 pub struct ParticleChunk<'a> {
-    particles: ChunkParticles<'a>,
-    /// Every particle of the chunk's range, listed or not: no other chunk reaches them.
+    /// Whether the chunk hands out a window for each particle of its range
+    /// ([`ParticleChunk::windows`]), or none.
+    windows: bool,
+    /// The chunk's particles: no other chunk reaches them.
     range: Range<usize>,
     /// The pass's particle count: every particle of the chunk lies below it.
     count: usize,
@@ -1090,23 +1078,15 @@ pub struct ParticleChunk<'a> {
     thread: ThreadBound,
 }
 
-/// The particles of a [`ParticleChunk`], ascending.
-#[derive(Debug)]
-enum ChunkParticles<'a> {
-    Range(Range<usize>),
-    Listed(&'a [u32]),
-}
-
 impl<'a> ParticleChunk<'a> {
-    /// The chunk's range of particles: those it hands out windows for lie in it (all of them,
-    /// unless the pass lists its particles).
+    /// The chunk's range of particles: those it hands out windows and tokens for.
     #[must_use]
     #[inline]
     pub fn range(&self) -> Range<usize> {
         self.range.clone()
     }
 
-    /// The token of particle `k` of the chunk's range, listed or not: a pass that reaches
+    /// The token of particle `k` of the chunk's range, windowed or not: a pass that reaches
     /// particles by a list of its own (the wall candidates) takes their tokens here. A particle
     /// may be named more than once: tokens give access by value only (no reference an access
     /// could alias), and the chunk's whole range is its own, on its own thread.
@@ -1129,17 +1109,18 @@ impl<'a> ParticleChunk<'a> {
         }
     }
 
-    /// A window for each of the chunk's particles, in ascending order.
+    /// A window for each of the chunk's particles, in ascending order; none if the pass asked
+    /// for none ([`for_each_chunk`]'s `windows`).
     pub fn windows(&self) -> impl Iterator<Item = Window<'a>> + '_ {
-        let (range, listed) = match &self.particles {
-            ChunkParticles::Range(range) => (range.clone(), None),
-            ChunkParticles::Listed(listed) => (0..listed.len(), Some(*listed)),
+        let range = if self.windows {
+            self.range.clone()
+        } else {
+            0..0
         };
-        range.map(move |i| {
-            let k = listed.map_or(i, |listed| listed[i] as usize);
+        range.map(move |k| {
             // SAFETY: no other thread holds a window of particle k: each chunk hands out its
-            // own range or the part of a strictly ascending list within it (`for_each_chunk`),
-            // each chunk is visited by one thread, and neither the chunk nor its windows can
+            // own range once (`for_each_chunk`), the ranges do not meet, each chunk is visited
+            // by one thread, and neither the chunk nor its windows can
             // leave that thread (`ThreadBound`). The brand `'a` is the chunk's, fresh for each
             // visit (`for_each_chunk`'s `visit` is generic over it), so it is no slab visit's.
             // And k < count < 2^32 (`for_each_chunk`).
@@ -1332,41 +1313,43 @@ mod tests {
         assert!(std::panic::catch_unwind(|| window.pairs().count()).is_err());
     }
 
-    /// A pass over chunks hands out each particle (or each listed one) once, in its own chunk,
-    /// ascending, and merges the chunks' partials.
+    /// A pass over chunks covers each particle once, in its own chunk's range: with windows, one
+    /// window for each, ascending; without, none. And it merges the chunks' partials.
     #[test]
     fn a_pass_over_chunks_hands_out_each_particle_once_in_its_chunk() {
-        let count = 23;
+        let count: usize = 23;
         let chunk_len = 5;
-        let listed: Vec<u32> = (0..23).filter(|k| k % 3 != 1).collect();
-        for (listed, parallel) in [(None, false), (Some(listed.as_slice()), true)] {
-            let expected: Vec<usize> = match listed {
-                None => (0..count).collect(),
-                Some(listed) => listed.iter().map(|&k| k as usize).collect(),
-            };
+        for (windows, parallel) in [(true, false), (true, true), (false, true)] {
             let mut chunks: Vec<usize> = (0..count.div_ceil(chunk_len)).collect();
-            let seen = for_each_chunk(
+            let (ranges, windowed) = for_each_chunk(
                 count,
                 chunk_len,
-                listed,
+                windows,
                 &mut chunks,
                 parallel,
-                Vec::new(),
-                |seen: &mut Vec<usize>, &mut c, chunk| {
+                (Vec::new(), Vec::new()),
+                |(ranges, windowed): &mut (Vec<usize>, Vec<usize>), &mut c, chunk| {
                     let particles: Vec<usize> =
                         chunk.windows().map(|w| w.owner().index()).collect();
                     assert!(particles.is_sorted(), "chunk {c}: {particles:?}");
                     assert!(particles.iter().all(|k| k / chunk_len == c), "chunk {c}");
-                    seen.extend(particles);
+                    windowed.extend(particles);
+                    assert!(chunk.range().all(|k| k / chunk_len == c), "chunk {c}");
+                    // Every particle of the range has a token, windowed or not.
+                    ranges.extend(chunk.range().map(|k| chunk.member(k).index()));
                 },
-                |mut a, b| {
-                    a.extend(b);
-                    a
+                |(mut ranges, mut windowed), (more_ranges, more_windowed)| {
+                    ranges.extend(more_ranges);
+                    windowed.extend(more_windowed);
+                    (ranges, windowed)
                 },
             );
-            let mut seen = seen;
-            seen.sort_unstable();
-            assert_eq!(seen, expected);
+            let (mut ranges, mut windowed) = (ranges, windowed);
+            ranges.sort_unstable();
+            windowed.sort_unstable();
+            let every: Vec<usize> = (0..count).collect();
+            assert_eq!(ranges, every);
+            assert_eq!(windowed, if windows { every } else { Vec::new() });
         }
     }
 }

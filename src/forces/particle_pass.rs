@@ -184,15 +184,10 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
             crate::integrate::lowest_particle(summary.first_non_finite_force, found);
     };
     // Windows only for the heat of every particle; the wall contacts come from the candidates.
-    let listed = if HEAT && every_particle {
-        None
-    } else {
-        Some(&[][..])
-    };
     let summary = scatter::for_each_chunk(
         count,
         PARTICLES_PER_ITEM,
-        listed,
+        HEAT && every_particle,
         &mut chunks,
         parallel,
         ForceSummary::default(),
