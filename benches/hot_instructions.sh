@@ -15,7 +15,7 @@
 #
 # usage: benches/hot_instructions.sh PATTERN [SCENE] [STEPS] [-- hot_instructions.py options]
 #   e.g. benches/hot_instructions.sh 'pair_pass::handle_kept::<false, true, false>'
-#        benches/hot_instructions.sh 'Batch>::flush' scenes/liggghts_bed_20k.toml 500 -- --lines
+#        benches/hot_instructions.sh 'pair_pass::write_lanes' scenes/liggghts_bed_20k.toml 500 -- --lines
 #   PATTERN is a regular expression on the demangled names (`nm -C`); defaults: the 19.2k
 #   LIGGGHTS bed, 1000 steps (about a minute under valgrind).
 # needs: apt-get install valgrind binutils

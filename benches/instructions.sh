@@ -49,7 +49,7 @@ short, long_, steps, particles, scene = sys.argv[1], sys.argv[2], int(sys.argv[3
 PARTS = [
     ("sift of the near lists", r"NeighborList>?::visit_slabs"),
     ("fill of the lanes", r"pair_pass::handle_kept"),
-    ("write-back", r"pair_pass::Batch>?::flush"),
+    ("write-back", r"pair_pass::Batch>?::flush|pair_pass::write_lanes"),
     ("contact kernel", r"forces::lanes::"),
     ("drift and kicks", r"integrate::"),
     ("particle pass (walls)", r"particle_pass::|scatter::for_each_chunk|wall_lanes::"),

@@ -264,7 +264,7 @@ struct Batch<'r, 's> {
     /// The time the contacts act over \[s\]: the step's dt, 0 at the set-up evaluation.
     interval: f64,
     lanes: ContactLanes,
-    /// The pairs of the first `filled` lanes ([`Batch::fill_pair`]); `None` until the visit's
+    /// The pairs of the first `filled` lanes ([`handle_kept`]); `None` until the visit's
     /// first contact, whose pair the others start as (the tokens have no value of their own).
     pairs: Option<[LanePair<'s>; LANES]>,
     filled: usize,
@@ -346,9 +346,7 @@ impl<'r, 's> Batch<'r, 's> {
         BATCH_BUFFERS.with_borrow_mut(|held| *held = buffers);
     }
 
-    /// Runs the laws of the filled lanes and writes their results back lane by lane, in the
-    /// order the pairs were found: each contact's shares to both particles at once, the owner's
-    /// and then the partner's, as a serial loop over the pairs would add them.
+    /// Runs the laws of the filled lanes and writes their results back ([`write_lanes`]).
     #[inline]
     fn flush<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         &mut self,
@@ -359,74 +357,86 @@ impl<'r, 's> Batch<'r, 's> {
         summary: &mut ForceSummary,
     ) {
         let filled = std::mem::take(&mut self.filled);
-        // Every filled lane is a touching pair, met once.
-        summary.pair_contacts += filled;
         // `None` until the visit's first contact: then nothing was filled.
         let Some(pairs) = &self.pairs else {
             return;
         };
-        let heat = targets.heat.as_ref().filter(|_| HEAT);
-        if filled > 0 {
-            lanes::run::<BONDS, FRICTION>(set, model, self.interval, &mut self.lanes);
-            if let Some(h) = heat {
-                if !self.lanes.uniform_material() {
-                    for (lane, pair) in pairs[..filled].iter().enumerate() {
-                        let [a, b] = [pair.owner, pair.partner].map(|p| reads.material.get(p));
-                        self.lanes
-                            .set_conductivities(lane, h.model.pair_conductivities(a, b));
-                    }
-                }
-                self.lanes.run_conductances(set, h.model.conduction);
-            }
-        }
-        let states = targets.states.as_ref().filter(|_| BONDS);
-        let histories = targets.tangential.as_ref().filter(|_| FRICTION);
-        let torque = targets.torque.as_ref().filter(|_| FRICTION);
-        let own_slab = self.slab.own_slab();
-        for (lane, pair) in pairs[..filled].iter().enumerate() {
-            let LanePair {
-                owner,
-                partner,
-                slot,
-            } = *pair;
-            let out = self.lanes.output(lane);
-            let [r_a, r_b] = self.lanes.radii(lane);
-            let state_before = self.lanes.state_before(lane);
-            summary.observe_overlap_at(out.overlap_ratio, || {
-                if r_a <= r_b { owner } else { partner }.index()
-            });
-            if let Some(states) = states {
-                if out.state != state_before {
-                    states.write(slot, out.state);
-                }
-            }
-            if let Some(histories) = histories {
-                histories.write(own_slab, slot, out.spring);
-                if let Some(torque) = torque {
-                    torque.update(owner, |t| t + out.torque_on_a);
-                    torque.update(partner, |t| t + out.torque_on_b);
+        let lanes = (&mut self.lanes, &pairs[..filled]);
+        let visit = (self.slab, self.interval);
+        write_lanes::<BONDS, FRICTION, HEAT>(model, reads, targets, lanes, visit, set, summary);
+    }
+}
+
+/// Runs the laws of the filled `lanes`, whose pairs are `pairs` (one per filled lane), over
+/// `interval` \[s\] of `slab`'s visit, and writes their results back lane by lane, in the order
+/// the pairs were found: each contact's shares to both particles at once, the owner's and then
+/// the partner's, as a serial loop over the pairs would add them. A function of the lanes and
+/// their pairs rather than of the batch, so that the fill ([`handle_kept`]) keeps the pairs in
+/// hand across a flush.
+#[inline]
+fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+    model: &Model,
+    reads: ParticleReads<'_, 's>,
+    targets: &OpenTargets<'_, 's>,
+    (lanes, pairs): (&mut ContactLanes, &[LanePair<'s>]),
+    (slab, interval): (&SlabVisit<'s>, f64),
+    set: InstructionSet,
+    summary: &mut ForceSummary,
+) {
+    // Every filled lane is a touching pair, met once.
+    summary.pair_contacts += pairs.len();
+    let heat = targets.heat.as_ref().filter(|_| HEAT);
+    if !pairs.is_empty() {
+        lanes::run::<BONDS, FRICTION>(set, model, interval, lanes);
+        if let Some(h) = heat {
+            if !lanes.uniform_material() {
+                for (lane, pair) in pairs.iter().enumerate() {
+                    let [a, b] = [pair.owner, pair.partner].map(|p| reads.material.get(p));
+                    lanes.set_conductivities(lane, h.model.pair_conductivities(a, b));
                 }
             }
-            targets.force.update(owner, |f| f + out.force_on_a);
-            targets.force.update(partner, |f| f - out.force_on_a);
-            let half_lost = 0.5 * out.lost;
-            targets.lost.update(owner, |l| l + half_lost);
-            targets.lost.update(partner, |l| l + half_lost);
-            if let Some(h) = heat {
-                let conductance = self.lanes.conductance(lane);
-                let flow = conductance * (h.temperature.get(partner) - h.temperature.get(owner));
-                h.sums.update(owner, |s| s.add(flow, conductance));
-                h.sums.update(partner, |s| s.add(-flow, conductance));
-            }
+            lanes.run_conductances(set, h.model.conduction);
         }
     }
-
-    /// Completes the lane whose inputs are being filled: `pair` becomes its pair, and the lane
-    /// counts as filled.
-    #[inline(always)]
-    fn fill_pair(&mut self, pair: LanePair<'s>) {
-        self.pairs.get_or_insert([pair; LANES])[self.filled] = pair;
-        self.filled += 1;
+    let states = targets.states.as_ref().filter(|_| BONDS);
+    let histories = targets.tangential.as_ref().filter(|_| FRICTION);
+    let torque = targets.torque.as_ref().filter(|_| FRICTION);
+    let own_slab = slab.own_slab();
+    for (lane, pair) in pairs.iter().enumerate() {
+        let LanePair {
+            owner,
+            partner,
+            slot,
+        } = *pair;
+        let out = lanes.output(lane);
+        let [r_a, r_b] = lanes.radii(lane);
+        let state_before = lanes.state_before(lane);
+        summary.observe_overlap_at(out.overlap_ratio, || {
+            if r_a <= r_b { owner } else { partner }.index()
+        });
+        if let Some(states) = states {
+            if out.state != state_before {
+                states.write(slot, out.state);
+            }
+        }
+        if let Some(histories) = histories {
+            histories.write(own_slab, slot, out.spring);
+            if let Some(torque) = torque {
+                torque.update(owner, |t| t + out.torque_on_a);
+                torque.update(partner, |t| t + out.torque_on_b);
+            }
+        }
+        targets.force.update(owner, |f| f + out.force_on_a);
+        targets.force.update(partner, |f| f - out.force_on_a);
+        let half_lost = 0.5 * out.lost;
+        targets.lost.update(owner, |l| l + half_lost);
+        targets.lost.update(partner, |l| l + half_lost);
+        if let Some(h) = heat {
+            let conductance = lanes.conductance(lane);
+            let flow = conductance * (h.temperature.get(partner) - h.temperature.get(owner));
+            h.sums.update(owner, |s| s.add(flow, conductance));
+            h.sums.update(partner, |s| s.add(-flow, conductance));
+        }
     }
 }
 
@@ -598,13 +608,31 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     let slab = batch.slab;
     let own_slab = slab.own_slab();
     let uniform = batch.lanes.uniform_material();
-    for k in 0..batch.kept_count {
-        let KeptSlot {
-            owner,
-            partner,
-            slot: p,
-            separation,
-        } = batch.kept[k];
+    let count = std::mem::take(&mut batch.kept_count);
+    let Some(&first) = batch.kept[..count].first() else {
+        return;
+    };
+    // The round's state in registers, not reloaded from the batch for every contact (the lane
+    // count and the lanes' pairs were loaded, tested and stored each time): the lane count, and
+    // the batch's fields borrowed one by one, so that a flush needs no `&mut` of the whole.
+    // The pairs start as the first kept pair (the tokens have no value of their own).
+    let pairs = batch.pairs.get_or_insert(
+        [LanePair {
+            owner: first.owner,
+            partner: first.partner,
+            slot: first.slot,
+        }; LANES],
+    );
+    let lanes = &mut batch.lanes;
+    let visit = (batch.slab, batch.interval);
+    let mut filled = batch.filled;
+    for &KeptSlot {
+        owner,
+        partner,
+        slot: p,
+        separation,
+    } in &batch.kept[..count]
+    {
         let (r_a, r_b) = (reads.radius.get(owner), reads.radius.get(partner));
         let reach = r_a + r_b;
         // Without bond states the sifts keep only the touching pairs, by this very test (the
@@ -630,8 +658,10 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         );
         // The lane's parts are stored as they come, so that few values stay live across the
         // spring's look-up (built whole, the input was held in registers and on the stack).
-        let lane = batch.filled;
-        batch.lanes.set_pair(
+        // Below `LANES` (a full round is flushed at once); the mask says so to the compiler,
+        // which then checks no lane index.
+        let lane = filled % LANES;
+        lanes.set_pair(
             lane,
             separation,
             [r_a, r_b],
@@ -645,9 +675,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                 reads.material.get(owner),
                 reads.material.get(partner),
             );
-            batch
-                .lanes
-                .set_pair_material::<BONDS, FRICTION>(lane, &material);
+            lanes.set_pair_material::<BONDS, FRICTION>(lane, &material);
         }
         if BONDS {
             let state = states.map_or(BondState::Unbonded, |states| states.read(p));
@@ -655,7 +683,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                 (melted.get(owner), melted.get(partner))
             });
             let criterion = model.bond_criterion.holds(melted.0, melted.1);
-            batch.lanes.set_bond(lane, state, criterion);
+            lanes.set_bond(lane, state, criterion);
         }
         if FRICTION {
             let (angular_velocity, held) = match (histories, omega) {
@@ -667,18 +695,21 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                 }
                 _ => ([DVec3::ZERO; 2], TangentialSpring::default()),
             };
-            batch.lanes.set_spin(lane, angular_velocity, held);
+            lanes.set_spin(lane, angular_velocity, held);
         }
-        batch.fill_pair(LanePair {
+        pairs[lane] = LanePair {
             owner,
             partner,
             slot: p,
-        });
-        if batch.filled == LANES {
-            batch.flush::<BONDS, FRICTION, HEAT>(model, reads, targets, set, summary);
+        };
+        filled = lane + 1;
+        if filled == LANES {
+            let full = (&mut *lanes, &pairs[..]);
+            write_lanes::<BONDS, FRICTION, HEAT>(model, reads, targets, full, visit, set, summary);
+            filled = 0;
         }
     }
-    batch.kept_count = 0;
+    batch.filled = filled;
 }
 
 /// Asks for the partners' lines the fill and the write-back of `kept` will read and write,
