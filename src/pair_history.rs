@@ -16,7 +16,7 @@
 //! a contact is always the first the pass has not read yet, or no spring is: no slot needs an
 //! entry number, and a slot's spring is found without a load per slot. A spring the pass passes
 //! over belongs to a pair that came apart, and is released right there, in slot order
-//! ([`OpenHistories`]). (Each slot held a 4-byte entry number before, which the pair pass's sift
+//! ([`Pool::read`]). (Each slot held a 4-byte entry number before, which the pair pass's sift
 //! tested for every candidate: 1.6 % of the step, and 20 B per particle.) A rebuild carries the
 //! non-zero springs over by id key.
 
@@ -46,8 +46,10 @@ enum Met {
 }
 
 /// The springs of one slab's contacts, in one ring buffer, each with its slot: those the last
-/// pass left (numbers `0..held`, from ring position `base` on, wrapping, in ascending slot
-/// order), followed by those the running pass writes (numbers `0..written` of the next pass).
+/// pass left that the running pass has not read yet (`unread` of them from ring position `read`
+/// on, wrapping, in ascending slot order), followed by those the running pass wrote, followed by
+/// `free` places. Outside a pass, the springs of the last pass are all unread and the pass
+/// wrote none: a pool is always ready for the next pass, which needs no start.
 ///
 /// The pass meets a slab's slots in ascending order at every pass, so it reads the last pass's
 /// springs in ascending order too, and a spring's place is free for a new one as soon as the
@@ -55,28 +57,51 @@ enum Met {
 /// pool needs room for about one pass's springs, not two: the ring is only ever short of room
 /// for the contacts that formed during the pass, and then it grows (32 B per contact saved:
 /// 28 B per particle on the 97.2k LIGGGHTS bed, 405 → 381 B at its peak).
+///
+/// The state is the pass's cursor itself (two ring positions and two counts, no start of a
+/// pass to mark), so that the pair pass takes a slab's pool out of the histories for a round of
+/// its contacts ([`OpenHistories::take`]) and walks it as a value of its own, which the
+/// compiler keeps in registers or the pass's stack frame. Reached through the shared histories
+/// at every contact, the pool's fields had been loaded through a pointer, tested and stored
+/// again for each read and append: taking the pool per round took 9.7 of the 364.3
+/// instructions per particle-step of the 19.2k LIGGGHTS bed (docs/performance.md, fifty-ninth
+/// round).
 #[derive(Debug, Clone, Default)]
 pub struct Pool {
     /// The ring; its length is its capacity.
     ring: Vec<HeldSpring>,
-    /// Ring position of the last pass's spring 0.
-    base: usize,
-    /// The number of springs the last pass left.
-    held: usize,
-    /// The last pass's springs below this number were met by the running pass (which meets
-    /// them in ascending order), so their places may be written.
-    read_mark: usize,
-    /// The number of springs the running pass wrote.
-    written: usize,
+    /// Ring position of the first unread spring of the last pass.
+    read: usize,
+    /// The number of the last pass's springs not read yet.
+    unread: usize,
     /// Ring position of the running pass's next spring.
-    write_position: usize,
+    write: usize,
+    /// Places the running pass may write without overwriting an unread spring: the capacity
+    /// less the unread springs and the springs the running pass wrote.
+    free: usize,
+    /// Taken by a slab visit and not given back yet: this pool is the empty stand-in.
+    #[cfg(debug_assertions)]
+    taken: bool,
 }
 
 impl Pool {
-    /// The ring position of the last pass's spring `e` (`base + e < 2 × capacity`).
+    /// The number of springs the running pass wrote (outside a pass: none).
+    #[inline]
+    fn written(&self) -> usize {
+        self.ring.len() - self.unread - self.free
+    }
+
+    /// `position + 1`, wrapped to the ring.
+    #[inline(always)]
+    fn next_position(&self, position: usize) -> usize {
+        let next = position + 1;
+        if next == self.ring.len() { 0 } else { next }
+    }
+
+    /// The ring position of the unread spring `e` (`read + e < 2 × capacity`).
     #[inline]
     fn position(&self, e: usize) -> usize {
-        let position = self.base + e;
+        let position = self.read + e;
         if position >= self.ring.len() {
             position - self.ring.len()
         } else {
@@ -84,14 +109,14 @@ impl Pool {
         }
     }
 
-    /// The last pass's springs, in slot order.
+    /// The springs the last pass left, in slot order (outside a pass).
     fn springs(&self) -> impl Iterator<Item = &HeldSpring> {
-        (0..self.held).map(|e| &self.ring[self.position(e)])
+        (0..self.unread).map(|e| &self.ring[self.position(e)])
     }
 
     /// The number of the last pass's spring of `slot`, or where it would go (outside a pass).
     fn find(&self, slot: u32) -> Result<usize, usize> {
-        let (mut low, mut high) = (0, self.held);
+        let (mut low, mut high) = (0, self.unread);
         while low < high {
             let middle = low + (high - low) / 2;
             match self.ring[self.position(middle)].slot.cmp(&slot) {
@@ -103,30 +128,35 @@ impl Pool {
         Err(low)
     }
 
+    /// Takes the first unread spring (there is one): its place is free from now on.
+    #[inline(always)]
+    fn take_first_unread(&mut self) -> HeldSpring {
+        let first = self.ring[self.read];
+        self.read = self.next_position(self.read);
+        self.unread -= 1;
+        self.free += 1;
+        first
+    }
+
     /// Meets `slot` in a pass (the slots met must ascend): the first unread spring, taken if it
     /// belongs to `slot` or to a slot before it (passed over), left otherwise.
     #[inline(always)]
     fn meet(&mut self, slot: u32) -> Met {
-        if self.read_mark < self.held {
-            let next = self.ring[self.position(self.read_mark)];
-            if next.slot <= slot {
-                self.read_mark += 1;
-                return if next.slot == slot {
-                    Met::Spring(next.spring)
-                } else {
-                    Met::PassedOver(next)
-                };
+        if self.unread > 0 && self.ring[self.read].slot <= slot {
+            let first = self.take_first_unread();
+            if first.slot == slot {
+                Met::Spring(first.spring)
+            } else {
+                Met::PassedOver(first)
             }
+        } else {
+            Met::Nothing
         }
-        Met::Nothing
     }
 
     /// Takes the first unread spring, if any: at the end of a pass, the springs it did not meet.
-    fn take_unmet(&mut self, (): ()) -> Option<HeldSpring> {
-        (self.read_mark < self.held).then(|| {
-            self.read_mark += 1;
-            self.ring[self.position(self.read_mark - 1)]
-        })
+    fn take_unmet(&mut self) -> Option<HeldSpring> {
+        (self.unread > 0).then(|| self.take_first_unread())
     }
 
     /// Appends `value` for the next pass. The pass must append in ascending slot order: the
@@ -135,60 +165,49 @@ impl Pool {
     #[inline(always)]
     fn append(&mut self, value: HeldSpring) {
         debug_assert!(
-            self.written == 0 || {
-                let last = self
-                    .write_position
-                    .checked_sub(1)
-                    .unwrap_or(self.ring.len() - 1);
+            self.written() == 0 || {
+                let last = self.write.checked_sub(1).unwrap_or(self.ring.len() - 1);
                 self.ring[last].slot < value.slot
             },
             "spring of slot {} appended after one of a later slot",
             value.slot
         );
-        // Its place held the last pass's spring `held + written - capacity`, if that is ≥ 0:
-        // free once read.
-        if self.held + self.written >= self.read_mark + self.ring.len() {
+        if self.free == 0 {
             self.grow();
         }
-        self.ring[self.write_position] = value;
-        self.write_position += 1;
-        if self.write_position == self.ring.len() {
-            self.write_position = 0;
-        }
-        self.written += 1;
+        self.ring[self.write] = value;
+        self.write = self.next_position(self.write);
+        self.free -= 1;
     }
 
-    /// A larger ring with the unread springs of the last pass and the running pass's springs at
-    /// the same numbers. It holds at least every spring of both (`held + written`), so that
-    /// `base + e` stays below twice the capacity, and an eighth more: the number of a slab's
-    /// contacts changes slowly. Out of line and cold: it runs a few times per build, while the
-    /// pair pass appends once per contact and step, and it kept the append (and the pass's
-    /// write) from being inlined.
+    /// A larger ring with the unread springs of the last pass and the running pass's springs in
+    /// the same order, from position 0 on. It holds every spring of both and an eighth more:
+    /// the number of a slab's contacts changes slowly. Out of line and cold: it runs a few times
+    /// per build, while the pair pass appends once per contact and step, and it kept the append
+    /// (and the pass's write) from being inlined.
     #[cold]
     #[inline(never)]
     fn grow(&mut self) {
-        let live = self.held + self.written;
+        // From `read` on, the ring holds the unread springs, then the written ones, then the
+        // free places.
+        let live = self.ring.len() - self.free;
         let capacity = live + live / 8 + 16;
         let mut ring = vec![HeldSpring::default(); capacity];
-        // Spring `e` of the last pass goes to `e - read_mark`, the running pass's `j` after them.
-        // (`%`, not `position`: the running pass's springs reach past twice the capacity.)
-        let old = |seq: usize| self.ring[(self.base + seq) % self.ring.len()];
-        for e in self.read_mark..self.held {
-            ring[e - self.read_mark] = old(e);
+        for (e, place) in ring.iter_mut().take(live).enumerate() {
+            *place = self.ring[self.position(e)];
         }
-        let unread = self.held - self.read_mark;
-        for j in 0..self.written {
-            ring[unread + j] = old(self.held + j);
-        }
-        self.base = (capacity - self.read_mark % capacity) % capacity;
-        self.write_position = unread + self.written;
         self.ring = ring;
+        self.read = 0;
+        self.write = live;
+        self.free = capacity - live;
     }
 
     /// An empty pool with room for `count` springs and an eighth more.
     fn with_room(count: usize) -> Self {
+        let capacity = count + count / 8 + 16;
         Self {
-            ring: vec![HeldSpring::default(); count + count / 8 + 16],
+            ring: vec![HeldSpring::default(); capacity],
+            free: capacity,
             ..Self::default()
         }
     }
@@ -198,43 +217,28 @@ impl Pool {
     /// # Panics
     /// If its slot is not after theirs (the springs must stay in slot order).
     fn push(&mut self, value: HeldSpring) {
-        if let Some(last) = self.held.checked_sub(1) {
+        debug_assert_eq!(self.written(), 0, "a spring pushed during a pass");
+        if let Some(last) = self.unread.checked_sub(1) {
             assert!(
                 self.ring[self.position(last)].slot < value.slot,
                 "spring of slot {} added after one of a later slot",
                 value.slot
             );
         }
-        if self.held == self.ring.len() {
-            self.grow();
-        }
-        let position = self.position(self.held);
-        self.ring[position] = value;
-        self.held += 1;
+        self.append(value);
+        self.unread += 1;
     }
 
-    /// The ring position just after the last pass's springs: where a pass writes its first.
-    fn after_held(&self) -> usize {
-        if self.ring.is_empty() {
-            0
-        } else {
-            (self.base + self.held) % self.ring.len()
-        }
-    }
-
-    /// Starts a pass: the springs the last pass left are all unread.
-    fn start_pass(&mut self) {
-        self.read_mark = 0;
-        self.written = 0;
-        self.write_position = self.after_held();
-    }
-
-    /// Ends a pass: the springs it wrote are the ones the next pass reads.
+    /// Ends a pass: the springs it wrote are the ones the next pass reads; those it left unread
+    /// are dropped.
     fn finish_pass(&mut self) {
-        self.base = self.after_held();
-        self.held = self.written;
-        self.read_mark = 0;
-        self.written = 0;
+        let written = self.written();
+        // The running pass's first spring: `written` places before the next one, wrapping.
+        self.read = (self.write + self.ring.len() - written)
+            .checked_rem(self.ring.len())
+            .unwrap_or(0);
+        self.unread = written;
+        self.free = self.ring.len() - written;
     }
 }
 
@@ -351,7 +355,7 @@ impl TangentialHistories {
     /// Number of pairs with a spring.
     #[must_use]
     pub fn entries(&self) -> usize {
-        self.pools.iter().map(|pool| pool.held).sum()
+        self.pools.iter().map(|pool| pool.unread).sum()
     }
 
     /// Number of pairs whose spring is stretched (ξ ≠ 0).
@@ -368,17 +372,19 @@ impl TangentialHistories {
     /// [`Self::finish_pass`] after it.
     #[must_use]
     pub fn start_pass(&mut self) -> HistoryTargets<'_> {
-        for pool in &mut self.pools {
-            pool.start_pass();
-        }
         HistoryTargets {
             pools: Scatter::new(&mut self.pools),
         }
     }
 
     /// Makes the springs the pass wrote the ones the next pass reads.
+    ///
+    /// # Panics
+    /// In debug builds, if a visit took its slab's pool and did not give it back.
     pub fn finish_pass(&mut self) {
         for pool in &mut self.pools {
+            #[cfg(debug_assertions)]
+            assert!(!pool.taken, "a slab visit kept its springs");
             pool.finish_pass();
         }
     }
@@ -401,32 +407,67 @@ impl HistoryTargets<'_> {
     }
 }
 
-/// The histories as one slab visit reaches them: its slab's pool.
-///
-/// The visit meets its touching pairs in slot order ([`Self::read`]), as the last pass met the
-/// springs it left, so it finds each contact's spring at the front of the unread ones. A spring
-/// it passes over, or does not reach by the end of the visit ([`Self::release_unmet`]), belongs
-/// to a pair that came apart: it is handed back as released, in slot order, without a test of
-/// every candidate slot for a spring.
+/// The histories as one slab visit reaches them: its slab's pool, which the visit takes
+/// ([`Self::take`]), walks as its own value, and gives back ([`Self::give_back`]).
 #[derive(Debug)]
 pub struct OpenHistories<'s, 'v> {
     pool: Opened<'s, 'v, Pool, PerSlab>,
 }
 
 impl<'v> OpenHistories<'_, 'v> {
+    /// The visit's own slab's pool, taken out of the histories until [`Self::give_back`]: the
+    /// visit reads and appends its springs through a value of its own, whose cursor the
+    /// compiler keeps in hand (through the shared histories it was loaded and stored at every
+    /// contact; see [`Pool`]). The histories hold an empty pool meanwhile, marked as taken in
+    /// debug builds: [`TangentialHistories::finish_pass`] checks that every pool came back.
+    #[inline]
+    #[must_use = "the springs are lost unless given back"]
+    pub fn take(&self, slab: OwnSlab<'v>) -> Pool {
+        self.pool.update_own(slab, Pool::take_out, ())
+    }
+
+    /// Puts the visit's pool back, after its last read and append.
+    #[inline]
+    pub fn give_back(&self, slab: OwnSlab<'v>, pool: Pool) {
+        self.pool.update_own(slab, Pool::put_back, pool);
+    }
+}
+
+impl Pool {
+    /// The pool, leaving an empty one marked as taken in its place.
+    fn take_out(&mut self, (): ()) -> Self {
+        let taken = Self {
+            #[cfg(debug_assertions)]
+            taken: true,
+            ..Self::default()
+        };
+        std::mem::replace(self, taken)
+    }
+
+    /// Puts `pool` back in the place it was taken from.
+    fn put_back(&mut self, pool: Self) {
+        #[cfg(debug_assertions)]
+        assert!(self.taken, "a pool given back where none was taken");
+        *self = pool;
+    }
+
     /// Slot `p`'s spring as the last pass left it (zero if it holds none), for a touching pair
     /// met after every earlier slot of the visit: first, each spring of an earlier slot that the
     /// visit passed over (its pair came apart) goes to `released(slot, spring)`, in slot order.
+    ///
+    /// The visit meets its touching pairs in slot order, as the last pass met the springs it
+    /// left, so it finds each contact's spring at the front of the unread ones. A spring it
+    /// passes over, or does not reach by the end of the visit ([`Self::release_unmet`]),
+    /// belongs to a pair that came apart, without a test of every candidate slot for a spring.
     #[inline(always)]
     pub fn read(
-        &self,
-        slab: OwnSlab<'v>,
-        p: Slot<'v>,
+        &mut self,
+        p: Slot<'_>,
         mut released: impl FnMut(u32, TangentialSpring),
     ) -> TangentialSpring {
         let slot = u32::try_from(p.index()).expect("slots fit in u32");
         loop {
-            match self.pool.update_own(slab, Pool::meet, slot) {
+            match self.meet(slot) {
                 Met::Spring(spring) => return spring,
                 Met::Nothing => return TangentialSpring::default(),
                 Met::PassedOver(held) => released(held.slot, held.spring),
@@ -437,28 +478,20 @@ impl<'v> OpenHistories<'_, 'v> {
     /// Stores slot `p`'s spring for the next pass (a zero spring takes no place); the slots
     /// written must ascend.
     #[inline(always)]
-    pub fn write(&self, slab: OwnSlab<'v>, p: Slot<'v>, value: TangentialSpring) {
+    pub fn write(&mut self, p: Slot<'_>, value: TangentialSpring) {
         if value != TangentialSpring::default() {
             let slot = u32::try_from(p.index()).expect("slots fit in u32");
-            self.pool.update_own(
-                slab,
-                Pool::append,
-                HeldSpring {
-                    spring: value,
-                    slot,
-                },
-            );
+            self.append(HeldSpring {
+                spring: value,
+                slot,
+            });
         }
     }
 
     /// At the end of the visit: each spring the visit did not meet (its pair came apart) goes to
     /// `released(slot, spring)`, in slot order.
-    pub fn release_unmet(
-        &self,
-        slab: OwnSlab<'v>,
-        mut released: impl FnMut(u32, TangentialSpring),
-    ) {
-        while let Some(held) = self.pool.update_own(slab, Pool::take_unmet, ()) {
+    pub fn release_unmet(&mut self, mut released: impl FnMut(u32, TangentialSpring)) {
+        while let Some(held) = self.take_unmet() {
             released(held.slot, held.spring);
         }
     }
@@ -556,7 +589,6 @@ mod tests {
     /// order, from the meetings after it or at the end of the pass. `model` holds what every
     /// slot should hold.
     fn ring_pass(pool: &mut Pool, model: &mut [Option<f64>], mut choose: impl FnMut() -> u32) {
-        pool.start_pass();
         let mut passed_over = Vec::new();
         let mut came_apart = Vec::new();
         for (slot, modelled) in model.iter_mut().enumerate() {
@@ -586,7 +618,7 @@ mod tests {
             }
             *modelled = next;
         }
-        while let Some(held) = pool.take_unmet(()) {
+        while let Some(held) = pool.take_unmet() {
             passed_over.push((held.slot, held.spring.history.x));
         }
         assert_eq!(
@@ -613,13 +645,13 @@ mod tests {
             // Every eighth pass is a burst: most slots without a spring start one (the ring must
             // grow in the middle of a pass, with unread springs behind the write position).
             let bias = if pass % 8 == 3 { 60 } else { 0 };
-            let held = pool.held;
+            let held = pool.unread;
             ring_pass(&mut pool, &mut model, || roll(bias));
-            largest_pass = largest_pass.max(held + pool.held);
+            largest_pass = largest_pass.max(held + pool.unread);
             for (slot, &expected) in model.iter().enumerate() {
                 assert_eq!(stored(&pool, slot), expected, "pass {pass}, slot {slot}");
             }
-            assert_eq!(pool.held, model.iter().flatten().count());
+            assert_eq!(pool.unread, model.iter().flatten().count());
             // The growth rule: every spring of one pass's reads and writes, and an eighth more.
             assert!(pool.ring.len() <= largest_pass + largest_pass / 8 + 16);
         }
@@ -631,15 +663,15 @@ mod tests {
             assert_eq!(pool.ring.len(), capacity, "steady pass {pass}");
         }
         assert!(
-            pool.held > 100,
+            pool.unread > 100,
             "the test must hold many springs: {}",
-            pool.held
+            pool.unread
         );
         assert!(
-            pool.ring.len() < 2 * pool.held,
+            pool.ring.len() < 2 * pool.unread,
             "one pass's springs, not two: {} places for {} springs",
             pool.ring.len(),
-            pool.held
+            pool.unread
         );
     }
 
@@ -648,7 +680,6 @@ mod tests {
     #[should_panic(expected = "appended after one of a later slot")]
     fn a_pass_refuses_a_spring_appended_out_of_slot_order() {
         let mut pool = Pool::default();
-        pool.start_pass();
         for slot in [2, 7, 4] {
             pool.append(HeldSpring {
                 spring: spring(f64::from(slot)),
@@ -687,6 +718,7 @@ mod tests {
                 (),
                 |(), visit| {
                     let targets = targets.open(visit);
+                    let mut springs = targets.take(visit.own_slab());
                     let mut note = |slot: u32, spring: TangentialSpring| {
                         let (owner, partner) = visit.pair_of_slot(slot);
                         released.lock().unwrap().push((
@@ -701,13 +733,14 @@ mod tests {
                             let apart =
                                 (p.index() == 0 && pass >= 3) || (p.index() == last && pass >= 4);
                             if !apart {
-                                let before = targets.read(visit.own_slab(), p, &mut note);
+                                let before = springs.read(p, &mut note);
                                 let after = spring(before.history.x + 1.0);
-                                targets.write(visit.own_slab(), p, after);
+                                springs.write(p, after);
                             }
                         }
                     }
-                    targets.release_unmet(visit.own_slab(), &mut note);
+                    springs.release_unmet(&mut note);
+                    targets.give_back(visit.own_slab(), springs);
                 },
                 |(), ()| (),
             );
