@@ -67,7 +67,8 @@ enum Command {
 struct RunArgs {
     /// Scene file (TOML).
     scene: Option<PathBuf>,
-    /// Worker threads (default: all cores). Results are bitwise the same for any count.
+    /// Worker threads (default: all cores). Results are bitwise the same for any count. Where
+    /// other programs keep cores busy, give fewer: the threads meet several times per step.
     #[arg(long)]
     threads: Option<usize>,
     /// Replace existing output files instead of refusing to start.

@@ -9,9 +9,10 @@
 //! round). A team member takes its share first (the same contiguous part of the particles and
 //! slabs at every pass, so the same data in its cache), then helps the others from the back of
 //! theirs, all but the item each is about to reach ([`Team::fold_items`]: on a shared machine a
-//! member may lose its core for a while), and spins between regions instead of sleeping; a
-//! member idle for longer than 200 µs (`SPIN`) sleeps until the next job (outside the step
-//! loop).
+//! member may lose its core for a while), and spins between regions instead of sleeping. A
+//! wait longer than 100 µs naps between looks, so that a member the host took off its core can
+//! have this one (`nap`); a member idle for longer than 200 µs (`SPIN`) sleeps until the next
+//! job (outside the step loop).
 //!
 //! The team has as many members as the rayon pool the caller runs in (`--threads`): the caller is
 //! member 0 and the others are threads of the team's own. Results are the same for any size and
@@ -39,8 +40,29 @@ pub use timing::{MemberTimes, PassName, PassTimes, take_pass_times, time_passes}
 
 /// How long a member waits for the next job before it sleeps: far longer than the gaps between
 /// the regions of a step (microseconds), far shorter than a human notices a busy core. For the
-/// first eighth it spins, then it yields its core to other threads between looks.
+/// first half it spins ([`SPIN_BEFORE_NAPS`]), then it naps between looks ([`nap`]).
 const SPIN: Duration = Duration::from_micros(200);
+
+/// How long a wait of the team spins before it naps between looks ([`nap`]), half of [`SPIN`]:
+/// above the waits of a quiet host's step (a member's imbalance, a few microseconds, tens on
+/// cores far apart). At 25 µs the naps cost the 19.2k LIGGGHTS bed's 2-thread step about a
+/// tenth on a quiet host (10 alternating runs, 0.75-0.97): a nap lasts longer than it asks
+/// (the kernel's timer slack, 50 µs), and a member waiting for the next job napped past its
+/// start.
+const SPIN_BEFORE_NAPS: Duration = Duration::from_micros(100);
+
+/// Gives the core away for a moment, in a wait of the team that has outlasted
+/// [`SPIN_BEFORE_NAPS`]: on a host where another program takes a core, the member waited for
+/// may be the one the scheduler took off, and only a core that falls idle runs it at once. A
+/// yield (`std::thread::yield_now`) keeps the core where the scheduler sees nothing else to run
+/// on it: the 19.2k LIGGGHTS bed at 2 threads beside one busy loop ran 5.6-10.0e6
+/// particle-steps per second with yields (six runs), 0.95-1.06e7 with naps (three runs; 1.1e7
+/// at 1 thread beside the loop). Alone, 22 alternating runs at 2 threads read no difference
+/// within a noisy hour's spread (medians 0.946 and 0.973, pair medians 0.992 and 1.040;
+/// docs/performance.md, fifty-ninth round).
+fn nap() {
+    std::thread::sleep(Duration::from_micros(20));
+}
 
 /// A job as the members see it: the caller's closure with its lifetime erased. It is called only
 /// between the caller's posting it and the last member's reporting back, while the caller waits
@@ -177,13 +199,14 @@ impl Team {
         struct Wait<'a>(&'a Shared);
         impl Drop for Wait<'_> {
             fn drop(&mut self) {
+                let start = Instant::now();
                 let mut spins = 0_u32;
                 while self.0.running.load(Ordering::Acquire) != 0 {
-                    spins = spins.saturating_add(1);
-                    if spins < 1 << 16 {
+                    spins = spins.wrapping_add(1);
+                    if spins % 64 != 0 || start.elapsed() < SPIN_BEFORE_NAPS {
                         std::hint::spin_loop();
                     } else {
-                        std::thread::yield_now();
+                        nap();
                     }
                 }
                 if std::thread::panicking() {
@@ -553,13 +576,14 @@ fn next_job(shared: &Shared, seen: usize) -> usize {
             continue;
         }
         let waited = start.elapsed();
-        if waited < SPIN / 8 {
+        if waited < SPIN_BEFORE_NAPS {
             continue;
         }
         if waited < SPIN {
-            // Another pool's threads may want the core meanwhile (rayon's, in the passes
-            // outside the team, or the neighbour-list build).
-            std::thread::yield_now();
+            // Another thread may want the core meanwhile: the caller, if the host took its core
+            // (then the job is late), or another pool's (rayon's, in the passes outside the
+            // team, or the neighbour-list build).
+            nap();
             continue;
         }
         let guard = shared.lock.lock().unwrap_or_else(|e| e.into_inner());
