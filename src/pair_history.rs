@@ -60,7 +60,7 @@ enum Met {
 ///
 /// The state is the pass's cursor itself (two ring positions and two counts, no start of a
 /// pass to mark), so that the pair pass takes a slab's pool out of the histories for a round of
-/// its contacts ([`OpenHistories::take`]) and walks it as a value of its own, which the
+/// its contacts ([`OpenHistories::with_own`]) and walks it as a value of its own, which the
 /// compiler keeps in registers or the pass's stack frame. Reached through the shared histories
 /// at every contact, the pool's fields had been loaded through a pointer, tested and stored
 /// again for each read and append: taking the pool per round took 9.7 of the 364.3
@@ -79,7 +79,8 @@ pub struct Pool {
     /// Places the running pass may write without overwriting an unread spring: the capacity
     /// less the unread springs and the springs the running pass wrote.
     free: usize,
-    /// Taken by a slab visit and not given back yet: this pool is the empty stand-in.
+    /// Taken out for a slab visit's walk ([`OpenHistories::with_own`]): this pool is the empty
+    /// stand-in.
     #[cfg(debug_assertions)]
     taken: bool,
 }
@@ -380,11 +381,11 @@ impl TangentialHistories {
     /// Makes the springs the pass wrote the ones the next pass reads.
     ///
     /// # Panics
-    /// In debug builds, if a visit took its slab's pool and did not give it back.
+    /// In debug builds, if a slab's pool is still out of the histories (a walk that unwound).
     pub fn finish_pass(&mut self) {
         for pool in &mut self.pools {
             #[cfg(debug_assertions)]
-            assert!(!pool.taken, "a slab visit kept its springs");
+            assert!(!pool.taken, "a slab's springs left out of the histories");
             pool.finish_pass();
         }
     }
@@ -407,35 +408,59 @@ impl HistoryTargets<'_> {
     }
 }
 
-/// The histories as one slab visit reaches them: its slab's pool, which the visit takes
-/// ([`Self::take`]), walks as its own value, and gives back ([`Self::give_back`]).
+/// The histories as one slab visit reaches them: its slab's pool, which the visit walks as a
+/// value of its own for a while ([`Self::with_own`]).
 #[derive(Debug)]
 pub struct OpenHistories<'s, 'v> {
     pool: Opened<'s, 'v, Pool, PerSlab>,
 }
 
 impl<'v> OpenHistories<'_, 'v> {
-    /// The visit's own slab's pool, taken out of the histories until [`Self::give_back`]: the
-    /// visit reads and appends its springs through a value of its own, whose cursor the
-    /// compiler keeps in hand (through the shared histories it was loaded and stored at every
-    /// contact; see [`Pool`]). The histories hold an empty pool meanwhile, marked as taken in
-    /// debug builds: [`TangentialHistories::finish_pass`] checks that every pool came back.
-    #[inline]
-    #[must_use = "the springs are lost unless given back"]
-    pub fn take(&self, slab: OwnSlab<'v>) -> Pool {
-        self.pool.update_own(slab, Pool::take_out, ())
+    /// `walk(pool)` on the visit's own slab's pool, taken out of the histories for the walk and
+    /// put back when it returns: the walk reads and appends its springs through a value of its
+    /// own, whose cursor the compiler keeps in hand (through the shared histories it was loaded
+    /// and stored at every contact; see [`Pool`]). The histories hold an empty pool meanwhile;
+    /// scoped, the pool cannot be left out of them by a visit that forgot to give it back.
+    ///
+    /// # Panics
+    /// In debug builds, if a walk on the same slab's pool is already under way (the inner walk
+    /// would find an empty pool).
+    #[inline(always)]
+    pub fn with_own<R>(&self, slab: OwnSlab<'v>, walk: impl FnOnce(&mut Pool) -> R) -> R {
+        let mut pool = self.pool.update_own(slab, Pool::take_out, ());
+        let result = walk(&mut pool);
+        self.pool.update_own(slab, Pool::put_back, pool);
+        result
     }
 
-    /// Puts the visit's pool back, after its last read and append.
-    #[inline]
-    pub fn give_back(&self, slab: OwnSlab<'v>, pool: Pool) {
-        self.pool.update_own(slab, Pool::put_back, pool);
+    /// [`Self::with_own`] where the pass has histories; without them (a compiled pass without
+    /// tangential springs), `walk` on an empty pool, which reads zero springs.
+    #[inline(always)]
+    pub fn with_own_or_empty<R>(
+        histories: Option<&Self>,
+        slab: OwnSlab<'v>,
+        walk: impl FnOnce(&mut Pool) -> R,
+    ) -> R {
+        // One call of `walk` for both cases: the fill's loop is inlined once, not twice.
+        let mut pool = histories.map_or_else(Pool::default, |h| {
+            h.pool.update_own(slab, Pool::take_out, ())
+        });
+        let result = walk(&mut pool);
+        if let Some(histories) = histories {
+            histories.pool.update_own(slab, Pool::put_back, pool);
+        }
+        result
     }
 }
 
 impl Pool {
     /// The pool, leaving an empty one marked as taken in its place.
     fn take_out(&mut self, (): ()) -> Self {
+        #[cfg(debug_assertions)]
+        assert!(
+            !self.taken,
+            "a slab's springs taken while a walk holds them"
+        );
         let taken = Self {
             #[cfg(debug_assertions)]
             taken: true,
@@ -718,7 +743,6 @@ mod tests {
                 (),
                 |(), visit| {
                     let targets = targets.open(visit);
-                    let mut springs = targets.take(visit.own_slab());
                     let mut note = |slot: u32, spring: TangentialSpring| {
                         let (owner, partner) = visit.pair_of_slot(slot);
                         released.lock().unwrap().push((
@@ -728,19 +752,20 @@ mod tests {
                             spring,
                         ));
                     };
-                    for window in visit.windows() {
-                        for (p, _) in window.pairs() {
-                            let apart =
-                                (p.index() == 0 && pass >= 3) || (p.index() == last && pass >= 4);
-                            if !apart {
-                                let before = springs.read(p, &mut note);
-                                let after = spring(before.history.x + 1.0);
-                                springs.write(p, after);
+                    targets.with_own(visit.own_slab(), |springs| {
+                        for window in visit.windows() {
+                            for (p, _) in window.pairs() {
+                                let apart = (p.index() == 0 && pass >= 3)
+                                    || (p.index() == last && pass >= 4);
+                                if !apart {
+                                    let before = springs.read(p, &mut note);
+                                    let after = spring(before.history.x + 1.0);
+                                    springs.write(p, after);
+                                }
                             }
                         }
-                    }
-                    springs.release_unmet(&mut note);
-                    targets.give_back(visit.own_slab(), springs);
+                        springs.release_unmet(&mut note);
+                    });
                 },
                 |(), ()| (),
             );

@@ -360,14 +360,13 @@ impl<'r, 's> Batch<'r, 's> {
             return;
         };
         let histories = targets.tangential.as_ref().filter(|_| FRICTION);
-        let own_slab = self.slab.own_slab();
-        let mut springs = histories.map_or_else(Pool::default, |h| h.take(own_slab));
-        let lanes = (&mut self.lanes, &pairs[..filled], &mut springs);
         let interval = self.interval;
-        write_lanes::<BONDS, FRICTION, HEAT>(model, reads, targets, lanes, interval, set, summary);
-        if let Some(histories) = histories {
-            histories.give_back(own_slab, springs);
-        }
+        OpenHistories::with_own_or_empty(histories, self.slab.own_slab(), |springs| {
+            let lanes = (&mut self.lanes, &pairs[..filled], springs);
+            write_lanes::<BONDS, FRICTION, HEAT>(
+                model, reads, targets, lanes, interval, set, summary,
+            );
+        });
     }
 }
 
@@ -470,9 +469,9 @@ fn release_unmet<'s>(
     histories: &OpenHistories<'_, 's>,
     lost: &Opened<'_, 's, f64, PerParticle>,
 ) {
-    let mut springs = histories.take(slab.own_slab());
-    springs.release_unmet(|slot, spring| release(slab, lost, slot, spring));
-    histories.give_back(slab.own_slab(), springs);
+    histories.with_own(slab.own_slab(), |springs| {
+        springs.release_unmet(|slot, spring| release(slab, lost, slot, spring));
+    });
 }
 
 /// Appends the window owner's slots that need work to the batch's kept slots: those touching,
@@ -640,104 +639,104 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     );
     let lanes = &mut batch.lanes;
     let interval = batch.interval;
-    let mut filled = batch.filled;
-    // The springs' cursor in hand for the round too: the slab's pool taken out of the
-    // histories, given back at the round's end (through the histories, its positions and
-    // counts were loaded and stored at every contact). Taken per round, not kept in the batch for
-    // the visit: moved in and out of the batch, it cost a `memcpy` per round (1.1 instructions
-    // per particle-step of the 19.2k LIGGGHTS bed, fifty-ninth round).
     let histories = targets.tangential.as_ref().filter(|_| FRICTION);
-    let own_slab = slab.own_slab();
-    let mut springs = histories.map_or_else(Pool::default, |h| h.take(own_slab));
     debug_assert!(
         !FRICTION || omega.is_some(),
         "tangential springs without angular velocities"
     );
-    for &KeptSlot {
-        owner,
-        partner,
-        slot: p,
-        separation,
-    } in &batch.kept[..count]
-    {
-        let (r_a, r_b) = (reads.radius.get(owner), reads.radius.get(partner));
-        let reach = r_a + r_b;
-        // Without bond states the sifts keep only the touching pairs, by this very test (the
-        // same operations on the same values): it is tested again only where a bonded pair
-        // apart may have been kept.
-        let apart = separation.length_squared() >= reach * reach;
-        debug_assert!(BONDS || !apart, "a pair apart kept without bond states");
-        if BONDS && apart {
-            // Apart: no square root, no division, and the slot's state cleared.
-            if let Some(states) = states {
-                if states.read(p) != BondState::Unbonded {
-                    states.write(p, BondState::Unbonded);
-                }
-            }
-            continue;
-        }
-        debug_assert!(
-            model
-                .periodic
-                .is_none_or(|p| p.minimum_image(separation) == separation),
-            "a touching pair of owner {} across a periodic face, which the list did not flag",
-            owner.index()
-        );
-        // The lane's parts are stored as they come, so that few values stay live across the
-        // spring's look-up (built whole, the input was held in registers and on the stack).
-        // Below `LANES` (a full round is flushed at once); the mask says so to the compiler,
-        // which then checks no lane index.
-        let lane = filled % LANES;
-        lanes.set_pair(
-            lane,
-            separation,
-            [r_a, r_b],
-            [reads.mass.get(owner), reads.mass.get(partner)],
-            [reads.velocity.get(owner), reads.velocity.get(partner)],
-        );
-        // With one material the lanes hold its parameters already: then none is loaded.
-        if !uniform {
-            let material = PairMaterial::of(
-                model,
-                reads.material.get(owner),
-                reads.material.get(partner),
-            );
-            lanes.set_pair_material::<BONDS, FRICTION>(lane, &material);
-        }
-        if BONDS {
-            let state = states.map_or(BondState::Unbonded, |states| states.read(p));
-            let melted = melted.map_or((false, false), |melted| {
-                (melted.get(owner), melted.get(partner))
-            });
-            let criterion = model.bond_criterion.holds(melted.0, melted.1);
-            lanes.set_bond(lane, state, criterion);
-        }
-        // With friction the particles rotate: the pass has their angular velocities (checked
-        // above), and no zero stand-ins are made for a case that cannot arise.
-        if let Some(omega) = omega {
-            let held = springs.read(p, |slot, spring| {
-                release(slab, &targets.lost, slot, spring);
-            });
-            lanes.set_spin(lane, [omega.get(owner), omega.get(partner)], held);
-        }
-        pairs[lane] = LanePair {
+    // The springs' cursor in hand for the round too: the slab's pool taken out of the
+    // histories for the round (through the histories, its positions and counts were loaded and
+    // stored at every contact). Taken per round, not kept in the batch for the visit: moved in
+    // and out of the batch, it cost a `memcpy` per round (1.1 instructions per particle-step of
+    // the 19.2k LIGGGHTS bed, fifty-ninth round). The walk is a `move` closure over the round's
+    // borrows: capturing the batch's fields through the batch cost the fill 0.6 instructions per
+    // particle-step of that bed (sixtieth round).
+    let kept = &batch.kept[..count];
+    let mut filled = batch.filled;
+    batch.filled = OpenHistories::with_own_or_empty(histories, slab.own_slab(), move |springs| {
+        for &KeptSlot {
             owner,
             partner,
             slot: p,
-        };
-        filled = lane + 1;
-        if filled == LANES {
-            let full = (&mut *lanes, &pairs[..], &mut springs);
-            write_lanes::<BONDS, FRICTION, HEAT>(
-                model, reads, targets, full, interval, set, summary,
+            separation,
+        } in kept
+        {
+            let (r_a, r_b) = (reads.radius.get(owner), reads.radius.get(partner));
+            let reach = r_a + r_b;
+            // Without bond states the sifts keep only the touching pairs, by this very test (the
+            // same operations on the same values): it is tested again only where a bonded pair
+            // apart may have been kept.
+            let apart = separation.length_squared() >= reach * reach;
+            debug_assert!(BONDS || !apart, "a pair apart kept without bond states");
+            if BONDS && apart {
+                // Apart: no square root, no division, and the slot's state cleared.
+                if let Some(states) = states {
+                    if states.read(p) != BondState::Unbonded {
+                        states.write(p, BondState::Unbonded);
+                    }
+                }
+                continue;
+            }
+            debug_assert!(
+                model
+                    .periodic
+                    .is_none_or(|p| p.minimum_image(separation) == separation),
+                "a touching pair of owner {} across a periodic face, which the list did not flag",
+                owner.index()
             );
-            filled = 0;
+            // The lane's parts are stored as they come, so that few values stay live across the
+            // spring's look-up (built whole, the input was held in registers and on the stack).
+            // Below `LANES` (a full round is flushed at once); the mask says so to the compiler,
+            // which then checks no lane index.
+            let lane = filled % LANES;
+            lanes.set_pair(
+                lane,
+                separation,
+                [r_a, r_b],
+                [reads.mass.get(owner), reads.mass.get(partner)],
+                [reads.velocity.get(owner), reads.velocity.get(partner)],
+            );
+            // With one material the lanes hold its parameters already: then none is loaded.
+            if !uniform {
+                let material = PairMaterial::of(
+                    model,
+                    reads.material.get(owner),
+                    reads.material.get(partner),
+                );
+                lanes.set_pair_material::<BONDS, FRICTION>(lane, &material);
+            }
+            if BONDS {
+                let state = states.map_or(BondState::Unbonded, |states| states.read(p));
+                let melted = melted.map_or((false, false), |melted| {
+                    (melted.get(owner), melted.get(partner))
+                });
+                let criterion = model.bond_criterion.holds(melted.0, melted.1);
+                lanes.set_bond(lane, state, criterion);
+            }
+            // With friction the particles rotate: the pass has their angular velocities (checked
+            // above), and no zero stand-ins are made for a case that cannot arise.
+            if let Some(omega) = omega {
+                let held = springs.read(p, |slot, spring| {
+                    release(slab, &targets.lost, slot, spring);
+                });
+                lanes.set_spin(lane, [omega.get(owner), omega.get(partner)], held);
+            }
+            pairs[lane] = LanePair {
+                owner,
+                partner,
+                slot: p,
+            };
+            filled = lane + 1;
+            if filled == LANES {
+                let full = (&mut *lanes, &pairs[..], &mut *springs);
+                write_lanes::<BONDS, FRICTION, HEAT>(
+                    model, reads, targets, full, interval, set, summary,
+                );
+                filled = 0;
+            }
         }
-    }
-    batch.filled = filled;
-    if let Some(histories) = histories {
-        histories.give_back(own_slab, springs);
-    }
+        filled
+    });
 }
 
 /// Asks for the partners' lines the fill and the write-back of `kept` will read and write,
