@@ -711,6 +711,29 @@ mod tests {
         }
     }
 
+    /// A member held up longer than the caller spins: the caller, napping between looks by
+    /// then, returns after that member's report and never before it (the member's write is
+    /// seen after `run` returns), whether the hold ends well past the spin, about at its end,
+    /// or not at all.
+    #[test]
+    fn the_caller_returns_after_a_held_up_member_reports_and_not_before() {
+        let team = Team::new(3);
+        let done: Vec<AtomicUsize> = (0..3).map(|_| AtomicUsize::new(0)).collect();
+        for round in 0..60 {
+            let hold = [SPIN_BEFORE_NAPS * 3, SPIN_BEFORE_NAPS, Duration::ZERO][round % 3];
+            let late = 1 + round % 2;
+            team.run(&|member| {
+                if member == late {
+                    std::thread::sleep(hold);
+                }
+                done[member].fetch_add(1, Ordering::Release);
+            });
+            for count in &done {
+                assert_eq!(count.load(Ordering::Acquire), round + 1);
+            }
+        }
+    }
+
     /// Every item is folded once, the partials come back in member order, and a member held
     /// up on its first item is helped: the others take the rest of its share from the back, all
     /// but its next item.
