@@ -725,6 +725,30 @@ mod tests {
         }
     }
 
+    /// A walk nested in another on the same slab would find the empty stand-in and lose the
+    /// springs the outer walk holds: debug builds refuse it.
+    #[cfg(debug_assertions)]
+    #[test]
+    #[should_panic(expected = "a slab's springs taken while a walk holds them")]
+    fn a_walk_nested_in_another_on_the_same_slab_panics_in_debug_builds() {
+        let positions: Vec<DVec3> = (0..3).map(|i| DVec3::X * (1.9 * f64::from(i))).collect();
+        let mut list = NeighborList::new(0.5, None);
+        list.build(&positions, &[1.0; 3]);
+        let mut histories = TangentialHistories::new(&list);
+        let targets = histories.start_pass();
+        list.for_each_slab(
+            false,
+            (),
+            |(), visit| {
+                let targets = targets.open(visit);
+                targets.with_own(visit.own_slab(), |_| {
+                    targets.with_own(visit.own_slab(), |_| ());
+                });
+            },
+            |(), ()| (),
+        );
+    }
+
     #[test]
     fn a_pass_reads_the_last_pass_springs_and_releases_those_it_does_not_meet() {
         // A row of five spheres: four touching pairs, over at least two slabs.
