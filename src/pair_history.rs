@@ -427,10 +427,7 @@ impl<'v> OpenHistories<'_, 'v> {
     /// would find an empty pool).
     #[inline(always)]
     pub fn with_own<R>(&self, slab: OwnSlab<'v>, walk: impl FnOnce(&mut Pool) -> R) -> R {
-        let mut pool = self.pool.update_own(slab, Pool::take_out, ());
-        let result = walk(&mut pool);
-        self.pool.update_own(slab, Pool::put_back, pool);
-        result
+        Self::with_own_or_empty(Some(self), slab, walk)
     }
 
     /// [`Self::with_own`] where the pass has histories; without them (a compiled pass without
