@@ -403,7 +403,10 @@ fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         }
     }
     let states = targets.states.as_ref().filter(|_| BONDS);
-    let torque = targets.torque.as_ref().filter(|_| FRICTION);
+    // With friction the particles rotate (`forces::compute` passes torques and springs
+    // together): `Some` known at compile time, so the loop tests nothing per contact.
+    let torque =
+        FRICTION.then(|| (targets.torque.as_ref()).expect("tangential springs without torques"));
     for (lane, pair) in pairs.iter().enumerate() {
         let LanePair {
             owner,
@@ -618,7 +621,11 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
 ) {
     // Known at compile time to be `None` where the instantiation leaves the physics out.
     let states = targets.states.as_ref().filter(|_| BONDS);
-    let omega = reads.angular_velocity.filter(|_| FRICTION);
+    // With friction the particles rotate: the pass has their angular velocities, `Some` known
+    // at compile time, so the loop tests nothing per contact (a flag held on the stack was
+    // loaded and tested at every contact).
+    let omega = FRICTION
+        .then(|| (reads.angular_velocity).expect("tangential springs without angular velocities"));
     let melted = targets.heat.as_ref().filter(|_| HEAT).map(|h| h.melted);
     let slab = batch.slab;
     let uniform = batch.lanes.uniform_material();
@@ -640,10 +647,6 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     let lanes = &mut batch.lanes;
     let interval = batch.interval;
     let histories = targets.tangential.as_ref().filter(|_| FRICTION);
-    debug_assert!(
-        !FRICTION || omega.is_some(),
-        "tangential springs without angular velocities"
-    );
     // The springs' cursor in hand for the round too: the slab's pool taken out of the
     // histories for the round (through the histories, its positions and counts were loaded and
     // stored at every contact). Taken per round, not kept in the batch for the visit: moved in
