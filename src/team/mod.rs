@@ -64,6 +64,40 @@ fn nap() {
     std::thread::sleep(Duration::from_micros(20));
 }
 
+/// The clock of one wait of the team, shared by the caller's wait for the members
+/// ([`Team::run`]) and a member's wait for the next job ([`next_job`]): both spin, then nap,
+/// and only a member goes on to sleep.
+struct Backoff {
+    start: Instant,
+    looks: u32,
+}
+
+impl Backoff {
+    fn new() -> Self {
+        Self {
+            start: Instant::now(),
+            looks: 0,
+        }
+    }
+
+    /// Pauses before the next look. A spin, while the wait has lasted less than
+    /// [`SPIN_BEFORE_NAPS`]; past it, returns how long the wait has lasted, for the caller to
+    /// nap ([`nap`]) or sleep. The clock is read only every 64th look: a read costs more than
+    /// a look.
+    #[inline]
+    fn pause(&mut self) -> Option<Duration> {
+        self.looks = self.looks.wrapping_add(1);
+        if self.looks % 64 == 0 {
+            let waited = self.start.elapsed();
+            if waited >= SPIN_BEFORE_NAPS {
+                return Some(waited);
+            }
+        }
+        std::hint::spin_loop();
+        None
+    }
+}
+
 /// A job as the members see it: the caller's closure with its lifetime erased. It is called only
 /// between the caller's posting it and the last member's reporting back, while the caller waits
 /// in [`Team::run`], so the closure outlives every call.
@@ -199,13 +233,9 @@ impl Team {
         struct Wait<'a>(&'a Shared);
         impl Drop for Wait<'_> {
             fn drop(&mut self) {
-                let start = Instant::now();
-                let mut spins = 0_u32;
+                let mut backoff = Backoff::new();
                 while self.0.running.load(Ordering::Acquire) != 0 {
-                    spins = spins.wrapping_add(1);
-                    if spins % 64 != 0 || start.elapsed() < SPIN_BEFORE_NAPS {
-                        std::hint::spin_loop();
-                    } else {
+                    if backoff.pause().is_some() {
                         nap();
                     }
                 }
@@ -563,22 +593,15 @@ fn serve(shared: &Shared, member: usize) {
 /// Waits until a generation after `seen` is posted and returns it: spinning for [`SPIN`], then
 /// asleep.
 fn next_job(shared: &Shared, seen: usize) -> usize {
-    let start = Instant::now();
-    let mut spins = 0_u32;
+    let mut backoff = Backoff::new();
     loop {
         let generation = shared.generation.load(Ordering::Acquire);
         if generation != seen {
             return generation;
         }
-        spins = spins.wrapping_add(1);
-        if spins % 64 != 0 {
-            std::hint::spin_loop();
+        let Some(waited) = backoff.pause() else {
             continue;
-        }
-        let waited = start.elapsed();
-        if waited < SPIN_BEFORE_NAPS {
-            continue;
-        }
+        };
         if waited < SPIN {
             // Another thread may want the core meanwhile: the caller, if the host took its core
             // (then the job is late), or another pool's (rayon's, in the passes outside the
