@@ -108,6 +108,61 @@ pub(super) struct ContactOutput {
     pub spring: TangentialSpring,
 }
 
+/// What the laws gave one lane, read part by part where the write-back uses it. Read whole
+/// ([`ContactLanes::output`]), the parts a pass uses (fourteen with friction) were loaded at
+/// once and held in registers across the write-back's stores, which left none for the springs'
+/// ring; read at their use, the write-back of the 19.2k LIGGGHTS bed took 58.5 instructions per
+/// particle-step instead of 61.8 (docs/performance.md, sixty-first round).
+#[derive(Clone, Copy)]
+pub(super) struct OutputOf<'l> {
+    lanes: &'l ContactLanes,
+    lane: usize,
+}
+
+impl OutputOf<'_> {
+    /// Force on a \[N\] (b receives the opposite).
+    #[inline(always)]
+    pub(super) fn force_on_a(self) -> DVec3 {
+        self.lanes.force_on_a.get(self.lane)
+    }
+
+    /// Energy the contact lost over the step \[J\] (M.35, M.63).
+    #[inline(always)]
+    pub(super) fn lost(self) -> f64 {
+        self.lanes.lost[self.lane]
+    }
+
+    /// δ over the smaller radius (the overlap guard's measure).
+    #[inline(always)]
+    pub(super) fn overlap_ratio(self) -> f64 {
+        self.lanes.overlap_ratio[self.lane]
+    }
+
+    /// The bond state after the step.
+    #[inline(always)]
+    pub(super) fn state(self) -> BondState {
+        self.lanes.new_state[self.lane]
+    }
+
+    /// With friction: the torques on a and b \[N·m\].
+    #[inline(always)]
+    pub(super) fn torques(self) -> [DVec3; 2] {
+        [
+            self.lanes.torque_on_a.get(self.lane),
+            self.lanes.torque_on_b.get(self.lane),
+        ]
+    }
+
+    /// With friction: the tangential spring after the step.
+    #[inline(always)]
+    pub(super) fn spring(self) -> TangentialSpring {
+        TangentialSpring {
+            history: self.lanes.spring_history.get(self.lane),
+            spring_energy: self.lanes.spring_energy[self.lane],
+        }
+    }
+}
+
 /// Up to [`LANES`] contacts, one array per quantity, and what the laws gave them.
 #[derive(Debug, Clone, Default)]
 pub(super) struct ContactLanes {
@@ -367,6 +422,16 @@ impl ContactLanes {
     #[inline(always)]
     pub(super) fn state_before(&self, i: usize) -> BondState {
         self.state[i]
+    }
+
+    /// What the laws gave lane `i` (after [`run`]), each part read where it is used
+    /// ([`OutputOf`]).
+    #[inline(always)]
+    pub(super) fn output_of(&self, i: usize) -> OutputOf<'_> {
+        OutputOf {
+            lanes: self,
+            lane: i,
+        }
     }
 
     /// What the laws gave lane `i` (after [`run`]).

@@ -413,27 +413,31 @@ fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             partner,
             slot,
         } = *pair;
-        let out = lanes.output(lane);
+        // Each output read where it is used, not all at once (`lanes::OutputOf`).
+        let out = lanes.output_of(lane);
         let [r_a, r_b] = lanes.radii(lane);
         let state_before = lanes.state_before(lane);
-        summary.observe_overlap_at(out.overlap_ratio, || {
+        summary.observe_overlap_at(out.overlap_ratio(), || {
             if r_a <= r_b { owner } else { partner }.index()
         });
         if let Some(states) = states {
-            if out.state != state_before {
-                states.write(slot, out.state);
+            let state = out.state();
+            if state != state_before {
+                states.write(slot, state);
             }
         }
         if FRICTION {
-            springs.write(slot, out.spring);
+            springs.write(slot, out.spring());
             if let Some(torque) = torque {
-                torque.update(owner, |t| t + out.torque_on_a);
-                torque.update(partner, |t| t + out.torque_on_b);
+                let [on_a, on_b] = out.torques();
+                torque.update(owner, |t| t + on_a);
+                torque.update(partner, |t| t + on_b);
             }
         }
-        targets.force.update(owner, |f| f + out.force_on_a);
-        targets.force.update(partner, |f| f - out.force_on_a);
-        let half_lost = 0.5 * out.lost;
+        let force_on_a = out.force_on_a();
+        targets.force.update(owner, |f| f + force_on_a);
+        targets.force.update(partner, |f| f - force_on_a);
+        let half_lost = 0.5 * out.lost();
         targets.lost.update(owner, |l| l + half_lost);
         targets.lost.update(partner, |l| l + half_lost);
         if let Some(h) = heat {
