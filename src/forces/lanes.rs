@@ -110,9 +110,9 @@ pub(super) struct ContactOutput {
 
 /// What the laws gave one lane, read part by part where the write-back uses it. Read whole
 /// ([`ContactLanes::output`]), the parts a pass uses (fourteen with friction) were loaded at
-/// once and held in registers across the write-back's stores, which left none for the springs'
-/// ring; read at their use, the write-back of the 19.2k LIGGGHTS bed took 58.5 instructions per
-/// particle-step instead of 61.8 (docs/performance.md, sixty-first round).
+/// once and held across the write-back's stores; read at their use, the write-back of the
+/// 19.2k LIGGGHTS bed took 58.5 instructions per particle-step instead of 61.8
+/// (docs/performance.md, sixty-first round).
 #[derive(Clone, Copy)]
 pub(super) struct OutputOf<'l> {
     lanes: &'l ContactLanes,
