@@ -95,9 +95,9 @@ struct RunArgs {
     #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(crate::forces::PREFETCH_MODES))]
     prefetch: Option<String>,
     /// Time the thread team's passes and print, after the summary (and after the deposition's
-    /// line, for its own), each pass's time per call and each thread's part of it: when it
-    /// started, finished its own share and its last item, and how many items it took from the
-    /// others (where threads wait). Adds a few clock readings per pass; results are bitwise the
+    /// line, for its own), each pass's time per call and when its last thread was done, and each
+    /// thread's part of it: when it started, finished its own share and its last item, and how
+    /// many items it took from the others (where threads wait). Adds a few clock readings per pass; results are bitwise the
     /// same.
     #[arg(long)]
     team_times: bool,
@@ -558,7 +558,7 @@ fn stop(sim: &Simulation, writers: &mut Writers, trip: &GuardTrip, wall: f64) ->
 /// The team's passes of a stage of the run (`--team-times`), the longest first, per call.
 fn print_team_times(title: &str, times: &[crate::team::PassTimes]) {
     say!(
-        "  {title} (µs per call: the call; then each thread's start, own share done, last item done, and items of its own + taken from the others):"
+        "  {title} (µs per call: the call, and when its last thread was done; then each thread's start, own share done, last item done, and items of its own + taken from the others):"
     );
     for pass in times {
         let calls = pass.calls.max(1) as f64;
@@ -568,9 +568,10 @@ fn print_team_times(title: &str, times: &[crate::team::PassTimes]) {
             format!("{}, {}", pass.name, pass.part)
         };
         let mut line = format!(
-            "    {name}: {} calls, {:.2} µs",
+            "    {name}: {} calls, {:.2} µs (last done {:.2})",
             pass.calls,
-            1e6 * pass.wall / calls
+            1e6 * pass.wall / calls,
+            1e6 * pass.last_done / calls
         );
         for (member, m) in pass.members.iter().enumerate() {
             line.push_str(&format!(

@@ -366,8 +366,9 @@ fn prefetching_changes_no_bit_of_the_results() {
     assert!(!dir.path().join("friction_pile.csv").exists());
 }
 
-/// `--team-times` prints, after the summary, a line per pass of the thread team with each
-/// thread's part, and changes no value of the run.
+/// `--team-times` prints, after the summary, a line per pass of the thread team with the
+/// call's time, when its last thread was done and each thread's part, and changes no value of
+/// the run.
 #[test]
 fn team_times_name_the_passes_and_change_no_bit_of_the_results() {
     let run = |extra: &[&str]| {
@@ -391,7 +392,9 @@ fn team_times_name_the_passes_and_change_no_bit_of_the_results() {
             .find(|l| l.trim_start().starts_with(pass))
             .unwrap_or_else(|| panic!("no line for {pass}: {table}"));
         assert!(
-            line.contains(" calls, ") && line.contains(" | 0: "),
+            line.contains(" calls, ")
+                && line.contains(" µs (last done ")
+                && line.contains(" | 0: "),
             "{line}"
         );
     }

@@ -78,6 +78,11 @@ pub struct PassTimes {
     pub calls: u64,
     /// From each call's posting to its return, summed \[s\].
     pub wall: f64,
+    /// From each call's posting until its last member had done its last item, summed \[s\]:
+    /// the latest of the members' `done` in each call. Not the latest of their sums, which
+    /// reads lower wherever the member that finishes last changes from call to call; the call's
+    /// `wall` beyond this is the caller's noticing the last report and the call's own return.
+    pub last_done: f64,
     /// Each member's times, in member order (one member when the pass ran on the caller alone).
     pub members: Vec<MemberTimes>,
 }
@@ -145,6 +150,7 @@ impl CallTimer {
                     part,
                     calls: 0,
                     wall: 0.0,
+                    last_done: 0.0,
                     members: vec![MemberTimes::default(); members.len()],
                 });
                 totals.len() - 1
@@ -153,6 +159,7 @@ impl CallTimer {
         let total = &mut totals[index];
         total.calls += 1;
         total.wall += wall;
+        total.last_done += members.iter().map(|m| m.done).fold(0.0, f64::max);
         for (sum, call) in total.members.iter_mut().zip(&members) {
             sum.started += call.started;
             sum.own_done += call.own_done;
@@ -245,13 +252,21 @@ mod tests {
         );
         for m in &team_of_two.members {
             assert!(0.0 <= m.started && m.started <= m.own_done, "{m:?}");
-            assert!(m.own_done <= m.done && m.done <= team_of_two.wall, "{m:?}");
+            assert!(
+                m.own_done <= m.done && m.done <= team_of_two.last_done,
+                "{m:?}"
+            );
         }
+        // Each call's latest finish is at least each member's and at most the call's return,
+        // so their sums are ordered the same way.
+        assert!(team_of_two.last_done <= team_of_two.wall, "{team_of_two:?}");
 
         let serial = totals_of(&totals, "timing test: serial");
         assert_eq!((serial.part, serial.calls), ("its part", 1));
         assert_eq!(serial.members.len(), 1);
         assert_eq!(serial.members[0].own_items, count as u64);
+        // A team of one: its latest finish is its only member's.
+        assert_eq!(serial.last_done, serial.members[0].done);
         // Outside the guards the name in force is the default again.
         assert!(
             totals
