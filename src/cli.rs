@@ -97,8 +97,8 @@ struct RunArgs {
     /// Time the thread team's passes and print, after the summary (and after the deposition's
     /// line, for its own), each pass's time per call and when its last thread was done, and each
     /// thread's part of it: when it started, finished its own share and its last item, and how
-    /// many items it took from the others (where threads wait). Adds a few clock readings per pass; results are bitwise the
-    /// same.
+    /// many items it took from the others (where threads wait). Adds a few clock readings per
+    /// pass; results are bitwise the same.
     #[arg(long)]
     team_times: bool,
 }
