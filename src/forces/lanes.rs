@@ -269,7 +269,8 @@ impl ContactLanes {
     /// Puts `input` into lane `i`; what the combination leaves out is not stored, nor are the
     /// material parameters where every lane holds the same (`input` must then carry those).
     /// The pair pass stores the parts one by one as it has them ([`Self::set_pair`],
-    /// [`Self::set_pair_material`], [`Self::set_bond`], [`Self::set_spin`]).
+    /// [`Self::set_pair_material`], [`Self::set_bond`], [`Self::set_angular_velocity`],
+    /// [`Self::set_held`]).
     #[inline(always)]
     pub(super) fn set<const BONDS: bool, const FRICTION: bool>(
         &mut self,
@@ -298,7 +299,8 @@ impl ContactLanes {
             self.set_bond(i, input.state, input.criterion);
         }
         if FRICTION {
-            self.set_spin(i, input.angular_velocity, input.held);
+            self.set_angular_velocity(i, input.angular_velocity);
+            self.set_held(i, input.held);
         }
     }
 
@@ -350,18 +352,19 @@ impl ContactLanes {
         self.criterion[i] = criterion;
     }
 
-    /// Puts lane `i`'s angular velocities \[rad/s\] of a and b and the spring the last pass
-    /// left.
+    /// Puts lane `i`'s angular velocities \[rad/s\] of a and b.
     #[inline(always)]
-    pub(super) fn set_spin(
-        &mut self,
-        i: usize,
-        angular_velocity: [DVec3; 2],
-        held: TangentialSpring,
-    ) {
+    pub(super) fn set_angular_velocity(&mut self, i: usize, angular_velocity: [DVec3; 2]) {
         for (lane, &omega) in self.angular_velocity.iter_mut().zip(&angular_velocity) {
             lane.set(i, omega);
         }
+    }
+
+    /// Puts lane `i`'s spring as the last pass left it. Apart from the angular velocities
+    /// ([`Self::set_angular_velocity`]), so that the pair pass stores those before the spring's
+    /// look-up and holds no particle index across it.
+    #[inline(always)]
+    pub(super) fn set_held(&mut self, i: usize, held: TangentialSpring) {
         self.held_history.set(i, held.history);
         self.held_energy[i] = held.spring_energy;
     }
