@@ -131,7 +131,7 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             if slab.records_near() {
                 for window in slab.windows() {
                     sift::<BONDS, FRICTION>(model, reads, targets, &window, near_skin, &mut batch);
-                    if batch.kept_count >= KEPT_PER_ROUND {
+                    if batch.kept.len() >= KEPT_PER_ROUND {
                         handle_kept::<BONDS, FRICTION, HEAT>(
                             model, reads, targets, &mut batch, set, summary,
                         );
@@ -199,28 +199,16 @@ fn sift_near<
 ) {
     // Known at compile time to be `None` where the instantiation leaves the physics out.
     let states = targets.states.as_ref().filter(|_| BONDS);
-    let mut count = batch.kept_count;
-    let room = count + entries.len();
-    make_room(&mut batch.kept, room, || {
-        entries.clone().next().map(|entry| KeptSlot {
-            owner: entry.owner,
-            partner: entry.partner,
-            slot: entry.slot,
-            separation: DVec3::ZERO,
-        })
-    });
-    // The slice's pointer and length are held in registers for the loop (through the vector
-    // they were loaded again for every entry).
-    let kept = &mut batch.kept[..room];
     // With `PREFETCH`, the entries `SIFT_AHEAD` places on, whose partners' lines are asked for.
     let mut ahead = entries.clone().skip(SIFT_AHEAD);
-    for NearTokens {
-        owner,
-        slot,
-        partner,
-        minimum_image,
-    } in entries
-    {
+    let room = entries.len();
+    batch.kept.sift(entries, room, |entry| {
+        let NearTokens {
+            owner,
+            slot,
+            partner,
+            minimum_image,
+        } = entry;
         if PREFETCH {
             prefetch_partner::<FRICTION, HEAT>(reads, targets, partner);
             if let Some(next) = ahead.next() {
@@ -242,9 +230,8 @@ fn sift_near<
             slot,
             separation,
         };
-        count = keep(kept, count, kept_slot, touching, states);
-    }
-    batch.kept_count = count;
+        (kept_slot, needs_work(touching, slot, states))
+    });
 }
 
 /// The touching pair in a lane of the batch: whom the write-back ([`Batch::flush`]) adds the
@@ -315,10 +302,8 @@ struct Batch<'r, 's> {
     /// first contact, whose pair the others start as (the tokens have no value of their own).
     pairs: Option<LanePairs<'s>>,
     filled: usize,
-    /// The slots that need work, of the owners sifted since the last [`handle_kept`], in order:
-    /// the first `kept_count` entries (those beyond are the sift's scratch, [`make_room`]).
-    kept: Vec<KeptSlot<'s>>,
-    kept_count: usize,
+    /// The slots that need work, of the owners sifted since the last [`handle_kept`], in order.
+    kept: KeptSlots<'s>,
 }
 
 /// A slot that needs work: touching, or holding a bond state or a spring.
@@ -330,6 +315,54 @@ struct KeptSlot<'s> {
     /// x_b − x_a \[m\], as the sift found it (its minimum image where the owner needs one):
     /// handling the slot does not load the two positions again.
     separation: DVec3,
+}
+
+/// The kept slots of a batch, in order, in a vector whose spare room the sifts write into
+/// ([`KeptSlots::sift`]).
+struct KeptSlots<'s>(Vec<KeptSlot<'s>>);
+
+impl<'s> KeptSlots<'s> {
+    /// Offers each of the first `room` items of `items` (all of them if fewer): `offer` gives
+    /// the item's slot and whether it needs work; the slots that do are appended, in order.
+    ///
+    /// Without a branch on whether a slot needs work, which is a coin toss for the branch
+    /// predictor (about one candidate in five touches on a packed bed): every slot is written
+    /// at the end of the kept ones, in the room reserved beforehand, and kept by counting it.
+    /// The room is reserved once per call and not initialised, and the writes test no bounds:
+    /// the vector's initialised scratch, grown by copies of a sample slot, cost the sifts a
+    /// bounds check per candidate and each slab visit the sample's copies (6.1 of the 19.2k
+    /// LIGGGHTS bed's 95.4 sift instructions per particle-step, docs/performance.md,
+    /// sixty-fourth round).
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    fn sift<I: Iterator>(
+        &mut self,
+        items: I,
+        room: usize,
+        mut offer: impl FnMut(I::Item) -> (KeptSlot<'s>, bool),
+    ) {
+        let kept = &mut self.0;
+        kept.reserve(room);
+        let start = kept.len();
+        let base = kept.as_mut_ptr();
+        let mut count = start;
+        // At most `room` items, whatever `items` holds: then `count < start + room`.
+        for (item, _) in items.zip(0..room) {
+            let (slot, needs_work) = offer(item);
+            // SAFETY: `count` grew by at most one per item before this one, of which there were
+            // fewer than `room`, so `count < start + room`, within the capacity reserved above.
+            unsafe { base.add(count).write(slot) };
+            count += usize::from(needs_work);
+        }
+        // SAFETY: the slots below `start` were initialised, and `count` only ever passed a
+        // place written just before; `count` is within the capacity (above).
+        unsafe { kept.set_len(count) };
+    }
+
+    /// The number of kept slots.
+    fn len(&self) -> usize {
+        self.0.len()
+    }
 }
 
 /// Owners' kept slots gathered before they are handled. Handling many owners' slots in one loop,
@@ -380,15 +413,14 @@ impl<'r, 's> Batch<'r, 's> {
             lanes: ContactLanes::for_model(model, thermal),
             pairs: None,
             filled: 0,
-            kept: recycle(buffers.kept),
-            kept_count: 0,
+            kept: KeptSlots(recycle(buffers.kept)),
         }
     }
 
     /// Gives the buffers back to the thread, for its next visit.
     fn release_buffers(self) {
         let buffers = BatchBuffers {
-            kept: recycle(self.kept),
+            kept: recycle(self.kept.0),
         };
         BATCH_BUFFERS.with_borrow_mut(|held| *held = buffers);
     }
@@ -553,19 +585,6 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
     let owner = window.owner();
     let minimum_image = window.needs_minimum_image();
     let (x_a, r_a) = (reads.position.get(owner), reads.radius.get(owner));
-    let kept = batch.kept_count;
-    let room = kept + window.slot_count();
-    make_room(&mut batch.kept, room, || {
-        (window.slot_count() > 0).then(|| {
-            let (slot, partner) = window.nth_pair(0);
-            KeptSlot {
-                owner,
-                partner,
-                slot,
-                separation: DVec3::ZERO,
-            }
-        })
-    });
     // One loop per image rule, so that the rule is not tested per slot.
     let slots = SiftedWindow {
         window,
@@ -575,12 +594,12 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
         r_a,
         near_skin,
     };
-    batch.kept_count = match model.periodic.as_ref().filter(|_| minimum_image) {
-        Some(periodic) => slots.sift(reads, &mut batch.kept, kept, |separation| {
+    match model.periodic.as_ref().filter(|_| minimum_image) {
+        Some(periodic) => slots.sift(reads, &mut batch.kept, |separation| {
             periodic.minimum_image(separation)
         }),
-        None => slots.sift(reads, &mut batch.kept, kept, |separation| separation),
-    };
+        None => slots.sift(reads, &mut batch.kept, |separation| separation),
+    }
 }
 
 /// What [`sift`] needs of one window.
@@ -594,19 +613,18 @@ struct SiftedWindow<'w, 's, 't> {
 }
 
 impl<'s> SiftedWindow<'_, 's, '_> {
-    /// Writes every slot to `kept[count..]` and keeps those that need work by advancing
-    /// `count`, which it returns, and records the near ones; `image` maps `x_b − x_a` to the
-    /// separation.
+    /// Appends the slots that need work to `kept` and records the near ones; `image` maps
+    /// `x_b − x_a` to the separation.
     #[inline(always)]
     fn sift(
         &self,
         reads: ParticleReads<'_, 's>,
-        kept: &mut [KeptSlot<'s>],
-        mut count: usize,
+        kept: &mut KeptSlots<'s>,
         image: impl Fn(DVec3) -> DVec3,
-    ) -> usize {
+    ) {
         let owner = self.window.owner();
-        for (slot, partner) in self.window.pairs() {
+        let room = self.window.slot_count();
+        kept.sift(self.window.pairs(), room, |(slot, partner)| {
             let separation = image(reads.position.get(partner) - self.x_a);
             let reach = self.r_a + reads.radius.get(partner);
             let distance_squared = separation.length_squared();
@@ -617,49 +635,27 @@ impl<'s> SiftedWindow<'_, 's, '_> {
                 slot,
                 separation,
             };
-            count = keep(kept, count, kept_slot, touching, self.states);
             let near_reach = reach + self.near_skin;
             if distance_squared < near_reach * near_reach {
                 self.slab.record_near(self.window, slot);
             }
-        }
-        count
+            (kept_slot, needs_work(touching, slot, self.states))
+        });
     }
 }
 
-/// Grows the kept slots to `room` entries if they are fewer, the new ones copies of `sample()`
-/// (a slot of the visit, `None` only if the sift has nothing to write): the entries past the
-/// kept ones are the sift's scratch, each written before it is read. (Held as `Option`s, with
-/// `None` to grow by, the slots took a tag's store per candidate and a test per kept slot.)
+/// The rule of both sifts ([`sift`], [`sift_near`]): a slot needs work if its pair touches or
+/// the slot holds a bond state (which must be cleared when it comes apart). (A spring needs no
+/// test here: the springs of pairs that came apart are the ones the pass does not meet,
+/// [`OpenHistories`].)
 #[inline(always)]
-fn make_room<'s>(
-    kept: &mut Vec<KeptSlot<'s>>,
-    room: usize,
-    sample: impl FnOnce() -> Option<KeptSlot<'s>>,
-) {
-    if kept.len() < room {
-        if let Some(sample) = sample() {
-            kept.resize(room, sample);
-        }
-    }
-}
-
-/// The rule of both sifts ([`sift`], [`sift_near`]): writes `slot` to `kept[count]` and returns
-/// the end of the kept slots, advanced past it if the pair touches or its slot holds a bond state
-/// (which must be cleared when it comes apart). Without a branch: whether a candidate touches is
-/// a coin toss for the branch predictor. (A spring needs no test here: the springs of pairs that
-/// came apart are the ones the pass does not meet, [`OpenHistories`].)
-#[inline(always)]
-fn keep<'s>(
-    kept: &mut [KeptSlot<'s>],
-    count: usize,
-    slot: KeptSlot<'s>,
+fn needs_work<'s>(
     touching: bool,
+    slot: Slot<'s>,
     states: Option<&Opened<'_, 's, BondState, PerSlot>>,
-) -> usize {
-    let bonded = states.is_some_and(|states| states.read(slot.slot) != BondState::Unbonded);
-    kept[count] = slot;
-    count + usize::from(touching | bonded)
+) -> bool {
+    let bonded = states.is_some_and(|states| states.read(slot) != BondState::Unbonded);
+    touching | bonded
 }
 
 /// The kept slots of the batch, in order: the pairs apart have their slot state cleared at once;
@@ -685,8 +681,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     let melted = targets.heat.as_ref().filter(|_| HEAT).map(|h| h.melted);
     let slab = batch.slab;
     let uniform = batch.lanes.uniform_material();
-    let count = std::mem::take(&mut batch.kept_count);
-    let Some(&first) = batch.kept[..count].first() else {
+    let Some(&first) = batch.kept.0.first() else {
         return;
     };
     // The round's state in registers, not reloaded from the batch for every contact (the lane
@@ -708,7 +703,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     // the 19.2k LIGGGHTS bed, fifty-ninth round). The walk is a `move` closure over the round's
     // borrows: capturing the batch's fields through the batch cost the fill 0.6 instructions per
     // particle-step of that bed (sixtieth round).
-    let kept = &batch.kept[..count];
+    let kept = batch.kept.0.as_slice();
     let mut filled = batch.filled;
     batch.filled = OpenHistories::with_own_or_empty(histories, slab.own_slab(), move |springs| {
         for &KeptSlot {
@@ -802,6 +797,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         }
         filled
     });
+    batch.kept.0.clear();
 }
 
 /// Asks for the partners' lines the fill and the write-back of `kept` will read and write,
