@@ -55,7 +55,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::periodic::Periodic;
-use crate::scatter::{NearPair, NearVisit, SlabVisit, Window};
+use crate::scatter::{NearList, NearVisit, SlabVisit, Window};
 
 /// The first near lists' near skin as a fraction of the skin (the tuner takes over at the first
 /// refresh): they hold about 2.7 slots per particle on the 19.2k LIGGGHTS bed, against 4.8
@@ -65,8 +65,8 @@ pub const NEAR_SKIN_FRACTION: f64 = 0.125;
 thread_local! {
     /// Where a visit records its slab's near list before it is copied (`visit_slabs`), kept by
     /// the thread between visits.
-    static RECORDING: std::cell::RefCell<Vec<NearPair>> =
-        const { std::cell::RefCell::new(Vec::new()) };
+    static RECORDING: std::cell::RefCell<NearList> =
+        std::cell::RefCell::new(NearList::default());
 }
 
 /// Source of [`NeighborList::generation`]: unique over the process, so that near lists recorded
@@ -111,7 +111,7 @@ pub struct NearPairs {
     generation: u64,
     /// Each slab's entries, behind a lock only so that the concurrent visits of a colour phase
     /// can each take their own (never contended).
-    slabs: Vec<Mutex<Vec<NearPair>>>,
+    slabs: Vec<Mutex<NearList>>,
     /// The near skin the next recording uses \[m\] (`None`: [`NeighborList::near_skin`]).
     skin: Option<f64>,
 }
@@ -611,11 +611,11 @@ impl NeighborList {
             .collect();
         // Exact sizes: a growing `Vec` would keep up to twice the slots for the list's lifetime.
         let total: usize = chunks.iter().map(|(_, _, found)| found.len()).sum();
-        // A near-list entry holds a slot's number in 31 bits (`scatter::NearPair`): far beyond
-        // any bed this machine holds (about 440 million spheres on a packed bed).
+        // The offsets and a near-list entry hold a slot's number in 32 bits (`scatter::NearPair`):
+        // far beyond any bed this machine holds (about 880 million spheres on a packed bed).
         assert!(
-            total < 1 << 31,
-            "{total} pair slots: the neighbour list holds fewer than 2^31"
+            u32::try_from(total).is_ok(),
+            "{total} pair slots: the neighbour list holds fewer than 2^32"
         );
         self.offsets = Vec::with_capacity(n + 1);
         self.offsets.push(0);
@@ -836,19 +836,16 @@ impl NeighborList {
                 near.map(|(pairs, _)| pairs.slabs[slab].lock().expect("no visit panicked"));
             let record = near.is_some_and(|(_, record)| record);
             // A list is recorded into this thread's scratch and then copied into the slab's
-            // allocation, which is replaced only when too small (at the size needed and a
-            // sixteenth more): grown by pushes, each slab's list would keep up to half its
-            // size as slack, and reallocated at every refresh, the heap would fill with holes
-            // (the near lists are a few per cent of the 97.2k bed's peak memory).
+            // allocation (`NearList::copy_from`).
             let scratch = RECORDING.with(|scratch| {
-                let mut pairs = scratch.take();
-                pairs.clear();
-                std::cell::RefCell::new(pairs)
+                let mut list = scratch.take();
+                list.clear();
+                std::cell::RefCell::new(list)
             });
             let near_visit = match held.as_ref() {
                 None => NearVisit::Off,
                 Some(_) if record => NearVisit::Record(&scratch),
-                Some(list) => NearVisit::Read(list.as_slice()),
+                Some(list) => NearVisit::Read(list),
             };
             // SAFETY: every partner lies in its owner's slab or the successor (checked at the
             // end of `build`); the slabs running concurrently are those of one colour phase,
@@ -870,12 +867,7 @@ impl NeighborList {
             visit(&mut partial, &visit_of_slab);
             let recorded = scratch.into_inner();
             if let Some(list) = held.as_mut().filter(|_| record) {
-                if list.capacity() < recorded.len() {
-                    let size = recorded.len();
-                    **list = Vec::with_capacity(size + size / 16);
-                }
-                list.clear();
-                list.extend_from_slice(&recorded);
+                list.copy_from(&recorded);
             }
             RECORDING.with(|kept| kept.replace(recorded));
             partial

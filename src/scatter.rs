@@ -134,19 +134,83 @@ pub struct OwnSlab<'w> {
 }
 
 /// One entry of a slab's near list, in 12 bytes (the near lists are about 2.7 entries per
-/// particle on a packed bed): the owner, the slot with the owner's image flag
-/// ([`Window::needs_minimum_image`]) in its high bit, and the slot's partner. The sift reads
-/// all it needs from the entry: the partner's position is one load away, and the owner, the
-/// slot and the image rule take none. (An 8-byte entry with the owner's place among the slab's
-/// members and the slot's place among the owner's slots needed the owner's first slot and its
-/// image flag loaded for every entry: 2.5-2.9 % slower at 1 thread on the 19.2k bed, for 11 B
-/// per particle less.) Only [`SlabVisit::record_near`] makes one, from a visit's own tokens.
+/// particle on a packed bed): the owner, the slot and the slot's partner. The sift reads all it
+/// needs from the entry: the partner's position is one load away, and the owner and the slot
+/// take none. (An 8-byte entry with the owner's place among the slab's members and the slot's
+/// place among the owner's slots needed the owner's first slot and its image flag loaded for
+/// every entry: 2.5-2.9 % slower at 1 thread on the 19.2k bed, for 11 B per particle less.)
+/// Only [`SlabVisit::record_near`] makes one, from a visit's own tokens.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct NearPair {
     owner: u32,
-    /// The slot, with the owner's image flag in the high bit.
     slot: u32,
     partner: u32,
+}
+
+/// A slab's near list: its entries in the order recorded, and the places of those whose
+/// separation needs the minimum image (M.77), ascending.
+///
+/// An entry needs it if its partner lay across a periodic face at the refresh (the minimum
+/// image of the stored positions' difference was not the difference itself), and then until
+/// the next refresh: positions are wrapped only at list builds, so an entry's difference moves
+/// continuously until then, and it would have to pass half the box, where the pair is apart
+/// under either rule, to change its image (the argument of [`Window::needs_minimum_image`], per
+/// entry). So the sift of the near entries runs without an image test in its loop, and takes
+/// the entries that need one apart: the test of an image flag in each entry, held in the
+/// slot's high bit for its owner, was 12.1 of the 19.2k LIGGGHTS bed's 89.3 sift instructions
+/// per particle-step (docs/performance.md, sixty-fourth round). The places take 4 bytes per
+/// crossing entry, about 2 % of that bed's entries.
+#[derive(Debug, Clone, Default)]
+pub struct NearList {
+    pairs: Vec<NearPair>,
+    crossing: Vec<u32>,
+}
+
+impl NearList {
+    /// Number of entries.
+    #[must_use]
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.pairs.len()
+    }
+
+    /// Whether the list holds no entry.
+    #[must_use]
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.pairs.is_empty()
+    }
+
+    /// Removes every entry, keeping the allocations.
+    pub fn clear(&mut self) {
+        self.pairs.clear();
+        self.crossing.clear();
+    }
+
+    /// Makes this list a copy of `recorded`, in the allocation it has if large enough, else in
+    /// one of the size needed and a sixteenth more: the near lists are recorded into a thread's
+    /// scratch and then copied into their slab's allocation. Grown by pushes, each slab's list
+    /// would keep up to half its size as slack, and reallocated at every refresh, the heap
+    /// would fill with holes (the near lists are a few per cent of the 97.2k bed's peak
+    /// memory).
+    pub fn copy_from(&mut self, recorded: &NearList) {
+        fn copy<T: Copy>(to: &mut Vec<T>, from: &[T]) {
+            if to.capacity() < from.len() {
+                let size = from.len();
+                *to = Vec::with_capacity(size + size / 16);
+            }
+            to.clear();
+            to.extend_from_slice(from);
+        }
+        copy(&mut self.pairs, &recorded.pairs);
+        copy(&mut self.crossing, &recorded.crossing);
+    }
+
+    /// The places of the entries `range` whose separation needs the minimum image, ascending.
+    fn crossing_within(&self, range: Range<usize>) -> &[u32] {
+        let place = |end: usize| self.crossing.partition_point(|&e| (e as usize) < end);
+        &self.crossing[place(range.start)..place(range.end)]
+    }
 }
 
 /// What a slab visit does with its slab's near list.
@@ -155,15 +219,12 @@ pub enum NearVisit<'a> {
     /// The pass keeps no near list.
     Off,
     /// The list recorded at the last refresh, to read.
-    Read(&'a [NearPair]),
+    Read(&'a NearList),
     /// The list to record anew, owner by owner and slot by slot (empty when the visit begins).
-    /// Every near slot gets its entry: a list holds fewer than 2^31 slots
-    /// (`NeighborList::build`), so a slot's number and its owner's image flag fit 32 bits.
-    Record(&'a RefCell<Vec<NearPair>>),
+    Record(&'a RefCell<NearList>),
 }
 
-/// The tokens of one near-list entry: the owner, the slot, its partner, and whether the owner's
-/// separations need the minimum image ([`Window::needs_minimum_image`]).
+/// The tokens of one near-list entry: the owner, the slot and its partner.
 #[derive(Debug, Clone, Copy)]
 pub struct NearTokens<'a> {
     /// The owner of the slot.
@@ -172,8 +233,6 @@ pub struct NearTokens<'a> {
     pub slot: Slot<'a>,
     /// Its partner.
     pub partner: Member<'a>,
-    /// See [`Window::needs_minimum_image`].
-    pub minimum_image: bool,
 }
 
 /// One task's visit of one slab of a coloured pass: the windows of its owners, in ascending
@@ -298,18 +357,28 @@ impl<'a> SlabVisit<'a> {
     }
 
     /// Adds `slot` of `window` (a window of [`SlabVisit::windows`] of this visit) to the near
-    /// list being recorded; does nothing unless the visit records one.
+    /// list being recorded, with whether its separation needed the minimum image (`crossing`,
+    /// see [`NearList`]); does nothing unless the visit records one.
     #[inline]
-    pub fn record_near(&self, window: &Window<'a>, slot: Slot<'a>) {
+    pub fn record_near(&self, window: &Window<'a>, slot: Slot<'a>, crossing: bool) {
         debug_assert!(
             window.slots.contains(&slot.index()),
             "slot of another window"
         );
+        debug_assert!(
+            window.crossing || !crossing,
+            "slot {} crosses a periodic face, its owner's window does not",
+            slot.index
+        );
         if let NearVisit::Record(list) = &self.near {
-            debug_assert!(slot.index < 1 << 31, "the list holds fewer than 2^31 slots");
-            list.borrow_mut().push(NearPair {
+            let mut list = list.borrow_mut();
+            if crossing {
+                let place = u32::try_from(list.pairs.len()).expect("fewer than 2^32 near entries");
+                list.crossing.push(place);
+            }
+            list.pairs.push(NearPair {
                 owner: window.owner().index,
-                slot: slot.index | u32::from(window.crossing) << 31,
+                slot: slot.index,
                 partner: window.partners[slot.index() - window.slots.start],
             });
         }
@@ -325,6 +394,20 @@ impl<'a> SlabVisit<'a> {
         }
     }
 
+    /// The places of the near list's entries `range` whose separation needs the minimum image,
+    /// ascending (see [`NearList`]).
+    ///
+    /// # Panics
+    /// If the visit reads no near list.
+    #[must_use]
+    #[inline]
+    pub fn near_crossing(&self, range: Range<usize>) -> &[u32] {
+        let NearVisit::Read(list) = &self.near else {
+            panic!("this visit reads no near list")
+        };
+        list.crossing_within(range)
+    }
+
     /// The tokens of the near list's entries `range`, in the order they were recorded.
     ///
     /// # Panics
@@ -337,9 +420,9 @@ impl<'a> SlabVisit<'a> {
         let NearVisit::Read(list) = &self.near else {
             panic!("this visit reads no near list")
         };
-        list[range].iter().map(move |pair| {
+        list.pairs[range].iter().map(move |pair| {
             let owner = pair.owner as usize;
-            let slot = (pair.slot & !(1 << 31)) as usize;
+            let slot = pair.slot as usize;
             let partner = pair.partner;
             debug_assert!(
                 self.members.binary_search(&pair.owner).is_ok(),
@@ -371,7 +454,6 @@ impl<'a> SlabVisit<'a> {
                     window: PhantomData,
                     thread: PhantomData,
                 },
-                minimum_image: pair.slot >> 31 != 0,
             }
         })
     }
@@ -1243,8 +1325,9 @@ mod tests {
     }
 
     /// A near list recorded by one visit reads back, in a later visit of the same slab, as the
-    /// tokens of the slots recorded, with their owners' image flags; also past an owner's 256th
-    /// slot (the 8-bit place of earlier entries).
+    /// tokens of the slots recorded, and the places of those recorded as crossing a periodic
+    /// face, within any range; also past an owner's 256th slot (the 8-bit place of earlier
+    /// entries).
     #[test]
     fn a_near_list_reads_back_the_slots_it_recorded() {
         // Particles 0 and 2 own slabs 0's slots: owner 2 has 300 slots, all with partner 1.
@@ -1254,7 +1337,7 @@ mod tests {
         partners[0] = 3;
         let slab_of = [0, 1, 0, 1];
         let crossing = [false, false, true, false];
-        let recording = RefCell::new(Vec::new());
+        let recording = RefCell::new(NearList::default());
         let visit = |near| {
             // SAFETY: single-threaded test; the partners (1 and 3) lie in slab 1, the successor.
             unsafe {
@@ -1268,7 +1351,9 @@ mod tests {
         for window in recorder.windows() {
             for (i, (slot, _)) in window.pairs().enumerate() {
                 if [0, 1, 7, 255, 256, 299].contains(&i) {
-                    recorder.record_near(&window, slot);
+                    // Some of the crossing owner's slots cross, not all.
+                    let crosses = window.needs_minimum_image() && i % 2 == 1;
+                    recorder.record_near(&window, slot, crosses);
                 }
             }
         }
@@ -1278,28 +1363,29 @@ mod tests {
         assert!(!reader.records_near());
         let read: Vec<_> = reader
             .near_pairs(0..reader.near_count())
-            .map(|t| {
-                (
-                    t.owner.index(),
-                    t.slot.index(),
-                    t.partner.index(),
-                    t.minimum_image,
-                )
-            })
+            .map(|t| (t.owner.index(), t.slot.index(), t.partner.index()))
             .collect();
         assert_eq!(
             read,
             [
-                (0, 0, 3, false),
-                (0, 1, 1, false),
-                (2, 2, 1, true),
-                (2, 3, 1, true),
-                (2, 9, 1, true),
-                (2, 257, 1, true),
-                (2, 258, 1, true),
-                (2, 301, 1, true)
+                (0, 0, 3),
+                (0, 1, 1),
+                (2, 2, 1),
+                (2, 3, 1),
+                (2, 9, 1),
+                (2, 257, 1),
+                (2, 258, 1),
+                (2, 301, 1)
             ]
         );
+        // Owner 2's slots 3, 9, 257 and 301 (its 1st, 7th, 255th and 299th) crossed: entries
+        // 3, 4, 5 and 7.
+        assert_eq!(reader.near_crossing(0..8), [3, 4, 5, 7]);
+        assert_eq!(reader.near_crossing(4..7), [4, 5]);
+        assert_eq!(reader.near_crossing(5..6), [5]);
+        assert_eq!(reader.near_crossing(6..7), [] as [u32; 0]);
+        assert_eq!(reader.near_crossing(7..8), [7]);
+        assert_eq!(reader.near_crossing(0..3), [] as [u32; 0]);
     }
 
     #[test]

@@ -9,6 +9,8 @@
 //! is formed in the list's order, whatever the thread count. The targets are opened per visit
 //! ([`Scatter::open`]), so the writes check their bounds once per visit.
 
+use std::ops::Range;
+
 use glam::DVec3;
 
 use super::lanes::{self, ContactLanes, LANES, PairMaterial};
@@ -19,6 +21,7 @@ use crate::model::Model;
 use crate::neighbor::{NearPairs, NeighborList};
 use crate::pair_history::{HistoryTargets, OpenHistories, Pool};
 use crate::particles::Particles;
+use crate::periodic::Periodic;
 use crate::scatter::{
     Member, NearTokens, Opened, OpenedReads, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
 };
@@ -140,7 +143,7 @@ pub(super) fn run<const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             } else {
                 let count = slab.near_count();
                 for start in (0..count).step_by(NEAR_PER_ROUND) {
-                    let entries = slab.near_pairs(start..(start + NEAR_PER_ROUND).min(count));
+                    let entries = (slab, start..(start + NEAR_PER_ROUND).min(count));
                     // Two builds of the sift: the test of `prefetch` stays out of its loop.
                     if prefetch {
                         sift_near::<BONDS, FRICTION, HEAT, true>(
@@ -179,10 +182,12 @@ const NEAR_PER_ROUND: usize = 256;
 /// of [`NEAR_PER_ROUND`] go without: the round's iterator does not reach into the next.
 const SIFT_AHEAD: usize = 16;
 
-/// Appends the near-list entries that need work to the batch's kept slots, as [`sift`] does
-/// for a window's slots: without a branch on whether a pair touches. The owner changes from
-/// entry to entry here, so its position is loaded each time (it is in cache: the entries come
-/// owner by owner).
+/// Appends the near-list entries `range` of `slab` that need work to the batch's kept slots, as
+/// [`sift`] does for a window's slots: without a branch on whether a pair touches. The owner
+/// changes from entry to entry here, so its position is loaded each time (it is in cache: the
+/// entries come owner by owner). The entries whose separation needs the minimum image are
+/// taken one by one between the runs of those that do not ([`NearList`]), so that the runs'
+/// loop tests no image flag.
 #[inline(always)]
 fn sift_near<
     's,
@@ -194,20 +199,20 @@ fn sift_near<
     model: &Model,
     reads: ParticleReads<'_, 's>,
     targets: &OpenTargets<'_, 's>,
-    entries: impl ExactSizeIterator<Item = NearTokens<'s>> + Clone,
+    (slab, range): (&SlabVisit<'s>, Range<usize>),
     batch: &mut Batch<'_, 's>,
 ) {
     // Known at compile time to be `None` where the instantiation leaves the physics out.
     let states = targets.states.as_ref().filter(|_| BONDS);
     // With `PREFETCH`, the entries `SIFT_AHEAD` places on, whose partners' lines are asked for.
-    let mut ahead = entries.clone().skip(SIFT_AHEAD);
-    let room = entries.len();
-    batch.kept.sift(entries, room, |entry| {
+    let mut ahead = slab.near_pairs(range.clone()).skip(SIFT_AHEAD);
+    // The slot of an entry and whether it needs work, its separation by the image rule of
+    // `periodic` (`None` for the plain difference).
+    let mut offer = |entry: NearTokens<'s>, periodic: Option<&Periodic>| {
         let NearTokens {
             owner,
             slot,
             partner,
-            minimum_image,
         } = entry;
         if PREFETCH {
             prefetch_partner::<FRICTION, HEAT>(reads, targets, partner);
@@ -216,7 +221,6 @@ fn sift_near<
                 reads.radius.prefetch(next.partner);
             }
         }
-        let periodic = model.periodic.as_ref().filter(|_| minimum_image);
         let separation = pair_separation(
             periodic,
             reads.position.get(owner),
@@ -231,7 +235,24 @@ fn sift_near<
             separation,
         };
         (kept_slot, needs_work(touching, slot, states))
-    });
+    };
+    let mut start = range.start;
+    for &crossing in slab.near_crossing(range.clone()) {
+        let crossing = crossing as usize;
+        let run = slab.near_pairs(start..crossing);
+        batch
+            .kept
+            .sift(run, crossing - start, |entry| offer(entry, None));
+        for entry in slab.near_pairs(crossing..crossing + 1) {
+            let (kept_slot, needs_work) = offer(entry, model.periodic.as_ref());
+            batch.kept.offer(kept_slot, needs_work);
+        }
+        start = crossing + 1;
+    }
+    let run = slab.near_pairs(start..range.end);
+    batch
+        .kept
+        .sift(run, range.end - start, |entry| offer(entry, None));
 }
 
 /// The touching pair in a lane of the batch: whom the write-back ([`Batch::flush`]) adds the
@@ -357,6 +378,13 @@ impl<'s> KeptSlots<'s> {
         // SAFETY: the slots below `start` were initialised, and `count` only ever passed a
         // place written just before; `count` is within the capacity (above).
         unsafe { kept.set_len(count) };
+    }
+
+    /// Appends `slot` if it `needs_work`: one slot, with a branch.
+    fn offer(&mut self, slot: KeptSlot<'s>, needs_work: bool) {
+        if needs_work {
+            self.0.push(slot);
+        }
     }
 
     /// The number of kept slots.
@@ -595,10 +623,11 @@ fn sift<'s, const BONDS: bool, const FRICTION: bool>(
         near_skin,
     };
     match model.periodic.as_ref().filter(|_| minimum_image) {
-        Some(periodic) => slots.sift(reads, &mut batch.kept, |separation| {
-            periodic.minimum_image(separation)
+        Some(periodic) => slots.sift(reads, &mut batch.kept, |plain| {
+            let separation = periodic.minimum_image(plain);
+            (separation, separation != plain)
         }),
-        None => slots.sift(reads, &mut batch.kept, |separation| separation),
+        None => slots.sift(reads, &mut batch.kept, |plain| (plain, false)),
     }
 }
 
@@ -614,18 +643,18 @@ struct SiftedWindow<'w, 's, 't> {
 
 impl<'s> SiftedWindow<'_, 's, '_> {
     /// Appends the slots that need work to `kept` and records the near ones; `image` maps
-    /// `x_b − x_a` to the separation.
+    /// `x_b − x_a` to the separation and whether it differs (the slot crosses a periodic face).
     #[inline(always)]
     fn sift(
         &self,
         reads: ParticleReads<'_, 's>,
         kept: &mut KeptSlots<'s>,
-        image: impl Fn(DVec3) -> DVec3,
+        image: impl Fn(DVec3) -> (DVec3, bool),
     ) {
         let owner = self.window.owner();
         let room = self.window.slot_count();
         kept.sift(self.window.pairs(), room, |(slot, partner)| {
-            let separation = image(reads.position.get(partner) - self.x_a);
+            let (separation, crossing) = image(reads.position.get(partner) - self.x_a);
             let reach = self.r_a + reads.radius.get(partner);
             let distance_squared = separation.length_squared();
             let touching = distance_squared < reach * reach;
@@ -637,7 +666,7 @@ impl<'s> SiftedWindow<'_, 's, '_> {
             };
             let near_reach = reach + self.near_skin;
             if distance_squared < near_reach * near_reach {
-                self.slab.record_near(self.window, slot);
+                self.slab.record_near(self.window, slot, crossing);
             }
             (kept_slot, needs_work(touching, slot, self.states))
         });
