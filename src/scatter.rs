@@ -554,16 +554,6 @@ impl<'a> Window<'a> {
         self.partners.len()
     }
 
-    /// The `i`-th of the visit's pair slots with its partner (as [`Window::pairs`] gives it).
-    ///
-    /// # Panics
-    /// If `i` is not below [`Window::slot_count`].
-    #[must_use]
-    #[inline]
-    pub fn nth_pair(&self, i: usize) -> (Slot<'a>, Member<'a>) {
-        self.slot_and_partner(i, self.partners[i])
-    }
-
     /// The tokens of the `i`-th slot and its partner `b`: the one place a pair window mints
     /// them.
     #[inline]
