@@ -243,10 +243,10 @@ fn sift_near<
         batch
             .kept
             .sift(run, crossing - start, |entry| offer(entry, None));
-        for entry in slab.near_pairs(crossing..crossing + 1) {
-            let (kept_slot, needs_work) = offer(entry, model.periodic.as_ref());
-            batch.kept.offer(kept_slot, needs_work);
-        }
+        let image = slab.near_pairs(crossing..crossing + 1);
+        batch
+            .kept
+            .sift(image, 1, |entry| offer(entry, model.periodic.as_ref()));
         start = crossing + 1;
     }
     let run = slab.near_pairs(start..range.end);
@@ -378,13 +378,6 @@ impl<'s> KeptSlots<'s> {
         // SAFETY: the slots below `start` were initialised, and `count` only ever passed a
         // place written just before; `count` is within the capacity (above).
         unsafe { kept.set_len(count) };
-    }
-
-    /// Appends `slot` if it `needs_work`: one slot, with a branch.
-    fn offer(&mut self, slot: KeptSlot<'s>, needs_work: bool) {
-        if needs_work {
-            self.0.push(slot);
-        }
     }
 
     /// The number of kept slots.
