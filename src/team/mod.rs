@@ -111,7 +111,8 @@ struct Shared {
     running: AtomicUsize,
     /// The current job, written before `generation` is raised and read after it is seen.
     job: UnsafeCell<Option<Job>>,
-    /// A member's job panicked: the caller panics too, once every member is done.
+    /// A member's job panicked: the caller panics too, once every member is done. (Where a
+    /// panic unwinds: the tests. The release build aborts on a panic, Cargo.toml.)
     panicked: AtomicBool,
     /// Members asleep or about to sleep (they wait on `wake`).
     sleeping: AtomicUsize,
