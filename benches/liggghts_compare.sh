@@ -12,6 +12,13 @@
 # contacts then than at the window's end): 0.98-1.05 times the window's figure, printed at the
 # end (docs/performance.md, forty-eighth round).
 #
+# am-sim checks its state (energy balance, stability limit, overlaps, every value finite) every
+# 500 steps here, at its series rows: in.bench prints LIGGGHTS' thermo only at its runs' ends
+# (`thermo 0`). A scene without an [output] table checks 100 times per run, which cost 2.5 % of
+# the 19.2k bed's run and 3.9 % of the 97.2k bed's on the Intel 207 (docs/performance.md,
+# sixty-fifth round); the readings before that round were taken so. The guards that run every
+# step (the forces' finite test, the largest overlap) run here too.
+#
 # The order of the two programs alternates from repetition to repetition.
 #
 # usage: benches/liggghts_compare.sh [LIGGGHTS_BENCH_DIR] [REPS] [THREADS...]
@@ -22,6 +29,9 @@
 #   the same state: LIGGGHTS from its settled restart, am-sim from that restart as
 #   benches/liggghts_export.sh wrote it (positions, velocities, spins and tangential springs), so
 #   they do the same contact work (coordination 1.57 at the end of the window in both).
+#   CHECK_EVERY=N (environment): steps between am-sim's checks of its state, 500 by default;
+#   CHECK_EVERY=default for the scene's own cadence (100 checks per run), as before the
+#   sixty-fifth round.
 # needs: apt-get install liggghts openmpi-bin (Debian's LIGGGHTS 3.8, generic -O2 build); am-sim is
 # built here for generic x86-64 (no target-cpu=native), so the ratio is about the code.
 set -euo pipefail
@@ -64,8 +74,13 @@ for size in "${SIZES[@]}"; do
     *) echo "SIZES: unknown bed '$size' (20k or 100k)" >&2; exit 1 ;;
   esac
   gunzip -c "$BENCH/settled_$size.restart.gz" > "$WORK/settled_$size.restart"
-  # A series row every 500 steps: its wall time at step 500 starts LIGGGHTS' timed window.
-  series='\n[output]\nseries_csv = "am_series.csv"\nseries_every_steps = 500\n'
+  # A series row and a check every 500 steps: the row's wall time at step 500 starts LIGGGHTS'
+  # timed window. CHECK_EVERY=default (environment) keeps the scene's 100 checks per run.
+  if [ "${CHECK_EVERY:-500}" = default ]; then
+    series='\n[output]\nseries_csv = "am_series.csv"\nseries_every_steps = 500\n'
+  else
+    series="\n[output]\nseries_csv = \"am_series.csv\"\nevery_steps = ${CHECK_EVERY:-500}\nseries_every_steps = 500\n"
+  fi
   for variant in 0:"" 1:_heat; do
     { sed "s|file = \"data/|file = \"$PWD/scenes/data/|" "scenes/liggghts_bed_$size${variant#*:}.toml"
       printf "$series"; } > "$WORK/am_sim_${size}_heat${variant%%:*}.toml"
