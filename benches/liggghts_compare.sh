@@ -14,9 +14,9 @@
 #
 # am-sim checks its state (energy balance, stability limit, overlaps, every value finite) every
 # 500 steps here, at its series rows: in.bench prints LIGGGHTS' thermo only at its runs' ends
-# (`thermo 0`). A scene without an [output] table checks 100 times per run, which cost 2.5 % of
-# the 19.2k bed's run and 3.9 % of the 97.2k bed's on the Intel 207 (docs/performance.md,
-# sixty-fifth round); the readings before that round were taken so. The guards that run every
+# (`thermo 0`). A scene without an [output] table checks 100 times per run, which cost 3.7 % of
+# the speed on the 19.2k bed and 4.8 % on the 97.2k bed on the Intel 207 (alternating runs,
+# docs/performance.md, sixty-fifth round); the readings before that round were taken so. The guards that run every
 # step (the forces' finite test, the largest overlap) run here too.
 #
 # The order of the two programs alternates from repetition to repetition.
