@@ -16,8 +16,8 @@
 # 500 steps here, at its series rows: in.bench prints LIGGGHTS' thermo only at its runs' ends
 # (`thermo 0`). A scene without an [output] table checks 100 times per run, which cost 3.7 % of
 # the speed on the 19.2k bed and 4.8 % on the 97.2k bed on the Intel 207 (alternating runs,
-# docs/performance.md, sixty-fifth round); the readings before that round were taken so. The guards that run every
-# step (the forces' finite test, the largest overlap) run here too.
+# docs/performance.md, sixty-fifth round); the readings before that round were taken so. The
+# guards that run every step (the forces' finite test, the largest overlap) run here too.
 #
 # The order of the two programs alternates from repetition to repetition.
 #
@@ -76,11 +76,9 @@ for size in "${SIZES[@]}"; do
   gunzip -c "$BENCH/settled_$size.restart.gz" > "$WORK/settled_$size.restart"
   # A series row and a check every 500 steps: the row's wall time at step 500 starts LIGGGHTS'
   # timed window. CHECK_EVERY=default (environment) keeps the scene's 100 checks per run.
-  if [ "${CHECK_EVERY:-500}" = default ]; then
-    series='\n[output]\nseries_csv = "am_series.csv"\nseries_every_steps = 500\n'
-  else
-    series="\n[output]\nseries_csv = \"am_series.csv\"\nevery_steps = ${CHECK_EVERY:-500}\nseries_every_steps = 500\n"
-  fi
+  checks=""
+  [ "${CHECK_EVERY:-500}" = default ] || checks="every_steps = ${CHECK_EVERY:-500}\n"
+  series="\n[output]\nseries_csv = \"am_series.csv\"\n${checks}series_every_steps = 500\n"
   for variant in 0:"" 1:_heat; do
     { sed "s|file = \"data/|file = \"$PWD/scenes/data/|" "scenes/liggghts_bed_$size${variant#*:}.toml"
       printf "$series"; } > "$WORK/am_sim_${size}_heat${variant%%:*}.toml"
