@@ -547,7 +547,7 @@ fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             h.sums.update(owner, |s| s.add(flow, conductance));
             h.sums.update(partner, |s| s.add(-flow, conductance));
         }
-        // The spring last: its ring's bookkeeping then holds no particle index across it.
+        // The spring last: its pool's bookkeeping then holds no particle index across it.
         if FRICTION {
             springs.write(slot, out.spring());
         }
