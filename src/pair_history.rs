@@ -154,9 +154,10 @@ impl Pool {
     }
 
     /// Room for the running pass's next spring: the thread's spare buffer if the pass has
-    /// written none yet (its first append of the visit), and where that is full, an eighth
-    /// more than the springs of both passes and 16 (the number of a slab's contacts changes
-    /// slowly). Out of line and cold: it runs once per visit and a few times per build, while
+    /// written none yet (its first append of the visit), and where that is full, room for the
+    /// springs written and those still unread (each may be written again) and an eighth more
+    /// and 16 (the number of a slab's contacts changes slowly), so that a spare taken from a
+    /// smaller slab grows once, not by steps. Out of line and cold: it runs once per visit and a few times per build, while
     /// the pair pass appends once per contact and step.
     #[cold]
     #[inline(never)]
@@ -166,8 +167,11 @@ impl Pool {
             debug_assert!(self.next.is_empty(), "a spare buffer holding springs");
         }
         if self.next.len() == self.next.capacity() {
-            let live = self.springs.len() + self.next.len();
-            self.next.reserve_exact(live / 8 + 16);
+            // What this pass may still write (a spring per unread one) and what it wrote: the
+            // springs the ring held, so its rule.
+            let live = self.unread() + self.next.len();
+            self.next
+                .reserve_exact(live + live / 8 + 16 - self.next.len());
         }
     }
 
@@ -690,6 +694,45 @@ mod tests {
             pool.springs.capacity(),
             pool.unread()
         );
+    }
+
+    #[test]
+    fn a_pass_given_a_small_spare_grows_its_buffer_once() {
+        // A slab of 1000 springs visited by a thread whose spare came from a slab of a few:
+        // the pass's first append takes the spare, fills it, and must then make room for every
+        // spring it may still write (a spring per unread one), not an eighth at a time.
+        let springs = 1000_u32;
+        let mut pool = Pool::with_room(springs as usize);
+        for slot in 0..springs {
+            pool.push(HeldSpring {
+                spring: spring(f64::from(slot)),
+                slot,
+            });
+        }
+        SPARE.set(Vec::with_capacity(4));
+        let mut capacities = Vec::new();
+        for slot in 0..springs {
+            assert!(matches!(pool.meet(slot), Met::Spring(_)), "slot {slot}");
+            pool.append(HeldSpring {
+                spring: spring(f64::from(slot) + 1.0),
+                slot,
+            });
+            if capacities.last() != Some(&pool.next.capacity()) {
+                capacities.push(pool.next.capacity());
+            }
+        }
+        // The spare's 4 places, then one growth to the 1000 springs and the rule's slack (an
+        // eighth more and 16): a growth by an eighth of the springs would have taken about 25
+        // steps to reach 1000.
+        assert_eq!(capacities.len(), 2, "capacities taken: {capacities:?}");
+        assert!(capacities[0] >= 4, "{capacities:?}");
+        assert!(
+            (1000..=1000 + 1000 / 8 + 16).contains(&capacities[1]),
+            "{capacities:?}"
+        );
+        pool.end_visit();
+        pool.finish_pass();
+        assert_eq!(pool.unread(), springs as usize);
     }
 
     #[test]
