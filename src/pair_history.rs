@@ -85,6 +85,13 @@ pub struct Pool {
     taken: bool,
 }
 
+/// The places a pool's buffer gets for `count` springs: an eighth more and 16, since the
+/// number of a slab's contacts changes slowly (at a rebuild's carry and when a pass's buffer
+/// grows).
+fn room_for(count: usize) -> usize {
+    count + count / 8 + 16
+}
+
 thread_local! {
     /// A buffer of springs a visit read to the end ([`Pool::end_visit`]), empty, for the next
     /// visit of the same thread to write its springs into ([`Pool::append`]): a slab's new
@@ -132,9 +139,9 @@ impl Pool {
 
     /// Takes the first unread spring, if any: at the end of a pass, the springs it did not meet.
     fn take_unmet(&mut self) -> Option<HeldSpring> {
-        let first = self.springs.get(self.read).copied();
-        self.read += usize::from(first.is_some());
-        first
+        let first = *self.springs.get(self.read)?;
+        self.read += 1;
+        Some(first)
     }
 
     /// Appends `value` for the next pass. The pass must append in ascending slot order: the
@@ -170,8 +177,7 @@ impl Pool {
             // What this pass may still write (a spring per unread one) and what it wrote: the
             // springs the ring held, so its rule.
             let live = self.unread() + self.next.len();
-            self.next
-                .reserve_exact(live + live / 8 + 16 - self.next.len());
+            self.next.reserve_exact(room_for(live) - self.next.len());
         }
     }
 
@@ -196,7 +202,7 @@ impl Pool {
     /// An empty pool with room for `count` springs and an eighth more.
     fn with_room(count: usize) -> Self {
         Self {
-            springs: Vec::with_capacity(count + count / 8 + 16),
+            springs: Vec::with_capacity(room_for(count)),
             ..Self::default()
         }
     }
