@@ -55,14 +55,16 @@ enum Met {
 /// The pass meets a slab's slots in ascending order at every pass, so it reads the last pass's
 /// springs in ascending order too, with a cursor that only moves forwards. Its new springs go
 /// into a second buffer: the one whose springs another visit of the same thread has just read
-/// to the end (the end of that visit hands it to the thread, the next visit's first append
+/// to the end (the end of that visit hands it to the thread, the next visit's first room
 /// takes it), so a slab holds one buffer between visits and a thread one more: about one
 /// pass's springs in all, as the ring in one buffer that this replaced held (the eleventh
 /// round's ring: 32 B per contact less than two buffers per slab). Where the ring read and
 /// wrote one buffer, wrapping, and counted its unread and free places at every read and append
 /// (26 of the fill's 96 instructions per contact on the 19.2k LIGGGHTS bed, docs/performance.md,
-/// sixty-fifth round), a read here is a test of the cursor against the length and an append a
-/// push (the step 321.0 → 311.7 instructions per particle-step, sixty-sixth round).
+/// sixty-fifth round), a read here is a test of the cursor against the length (the step 321.0 →
+/// 311.7 instructions per particle-step, sixty-sixth round), and the write-back writes a round
+/// of lanes' springs into room made once for the round ([`Pool::room`]), its place in a
+/// register (311.7 → 308.8, sixty-eighth round).
 ///
 /// The state is the pass's cursor itself, so that the pair pass takes a slab's pool out of the
 /// histories for a round of its contacts ([`OpenHistories::with_own`]) and walks it as a value
@@ -94,7 +96,7 @@ fn room_for(count: usize) -> usize {
 
 thread_local! {
     /// A buffer of springs a visit read to the end ([`Pool::end_visit`]), empty, for the next
-    /// visit of the same thread to write its springs into ([`Pool::append`]): a slab's new
+    /// visit of the same thread to write its springs into ([`Pool::room`]): a slab's new
     /// springs go into the lines its thread has just read, with no allocation per visit.
     static SPARE: std::cell::Cell<Vec<HeldSpring>> = const { std::cell::Cell::new(Vec::new()) };
 }
@@ -144,40 +146,46 @@ impl Pool {
         Some(first)
     }
 
-    /// Appends `value` for the next pass. The pass must append in ascending slot order: the
-    /// next pass meets the springs in that order (checked in debug builds, which the test suite
-    /// runs; the old per-slot entry numbers had made any order work).
-    #[inline(always)]
+    /// Appends `value` for the next pass, as the pair pass's [`SpringRoom::write`] does.
+    #[cfg(test)]
     fn append(&mut self, value: HeldSpring) {
-        debug_assert!(
-            self.next.last().is_none_or(|last| last.slot < value.slot),
-            "spring of slot {} appended after one of a later slot",
-            value.slot
-        );
-        if self.next.len() == self.next.capacity() {
-            self.grow();
-        }
-        self.next.push(value);
+        self.room(1).append(value);
     }
 
-    /// Room for the running pass's next spring: the thread's spare buffer if the pass has
-    /// written none yet (its first append of the visit), and where that is full, room for the
-    /// springs written and those still unread (each may be written again) and an eighth more
-    /// and 16 (the number of a slab's contacts changes slowly), so that a spare taken from a
-    /// smaller slab grows once, not by steps. Out of line and cold: it runs once per visit and
-    /// a few times per build, while the pair pass appends once per contact and step.
+    /// Room in the running pass's buffer for the springs of `count` more contacts, written in
+    /// slot order through the returned [`SpringRoom`]. The buffer is tested once for the
+    /// `count`, not once per spring: the write-back writes a round of lanes' springs into the
+    /// room with its place in a register, where a push per contact loaded, tested and stored
+    /// the buffer's length and pointer through memory (the compiler cannot tell the buffer's
+    /// header from the particles' sums the write-back adds to).
+    #[inline(always)]
+    pub fn room(&mut self, count: usize) -> SpringRoom<'_> {
+        if self.next.capacity() - self.next.len() < count {
+            self.grow(count);
+        }
+        SpringRoom::new(&mut self.next, count)
+    }
+
+    /// Room for `count` more springs in the running pass's buffer: the thread's spare buffer if
+    /// the pass has written none yet (its first room of the visit), and where that lacks the
+    /// room, room for the springs written and those still unread (each may be written again)
+    /// and an eighth more and 16 (the number of a slab's contacts changes slowly), so that a
+    /// spare taken from a smaller slab grows once, not by steps. Out of line and cold: it runs
+    /// about once per visit and a few times per build, while the pair pass asks for room once
+    /// per round of lanes.
     #[cold]
     #[inline(never)]
-    fn grow(&mut self) {
+    fn grow(&mut self, count: usize) {
         if self.next.capacity() == 0 {
             self.next = SPARE.take();
             debug_assert!(self.next.is_empty(), "a spare buffer holding springs");
         }
-        if self.next.len() == self.next.capacity() {
+        if self.next.capacity() - self.next.len() < count {
             // What this pass may still write (a spring per unread one) and what it wrote: the
             // springs the ring held, so its rule.
             let live = self.unread() + self.next.len();
-            self.next.reserve_exact(room_for(live) - self.next.len());
+            let room = (room_for(live) - self.next.len()).max(count);
+            self.next.reserve_exact(room);
         }
     }
 
@@ -482,8 +490,53 @@ impl Pool {
         }
     }
 
+    /// At the end of the visit: each spring the visit did not meet (its pair came apart) goes to
+    /// `released(slot, spring)`, in slot order.
+    pub fn release_unmet(&mut self, mut released: impl FnMut(u32, TangentialSpring)) {
+        while let Some(held) = self.take_unmet() {
+            released(held.slot, held.spring);
+        }
+        self.end_visit();
+    }
+}
+
+/// Room made in a pass's buffer of springs for a number of contacts ([`Pool::room`]): the
+/// springs written go into places reserved beforehand, counted in a register, and the buffer
+/// takes them when the room is dropped.
+pub struct SpringRoom<'p> {
+    /// The running pass's buffer, whose length is set when the room is dropped.
+    next: &'p mut Vec<HeldSpring>,
+    /// The buffer's first place; places `len..end` are reserved and not yet written.
+    base: *mut HeldSpring,
+    /// The places written, the buffer's springs before the room included.
+    len: usize,
+    /// The end of the room: the buffer's length when it was made and the room's count.
+    end: usize,
+}
+
+impl<'p> SpringRoom<'p> {
+    /// Room for `count` springs after those of `next`, which must have the capacity for them.
+    ///
+    /// # Panics
+    /// If `next` lacks the capacity.
+    fn new(next: &'p mut Vec<HeldSpring>, count: usize) -> Self {
+        assert!(
+            next.capacity() - next.len() >= count,
+            "room for {count} springs made in a buffer without it"
+        );
+        Self {
+            base: next.as_mut_ptr(),
+            len: next.len(),
+            end: next.len() + count,
+            next,
+        }
+    }
+
     /// Stores slot `p`'s spring for the next pass (a zero spring takes no place); the slots
     /// written must ascend.
+    ///
+    /// # Panics
+    /// If the room is full: more springs written than it was made for.
     #[inline(always)]
     pub fn write(&mut self, p: Slot<'_>, value: TangentialSpring) {
         if value != TangentialSpring::default() {
@@ -495,13 +548,38 @@ impl Pool {
         }
     }
 
-    /// At the end of the visit: each spring the visit did not meet (its pair came apart) goes to
-    /// `released(slot, spring)`, in slot order.
-    pub fn release_unmet(&mut self, mut released: impl FnMut(u32, TangentialSpring)) {
-        while let Some(held) = self.take_unmet() {
-            released(held.slot, held.spring);
+    /// Appends `value` for the next pass. The pass must append in ascending slot order: the
+    /// next pass meets the springs in that order (checked in debug builds, which the test suite
+    /// runs; the old per-slot entry numbers had made any order work).
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    fn append(&mut self, value: HeldSpring) {
+        assert!(
+            self.len < self.end,
+            "more springs written than the room was made for"
+        );
+        // SAFETY: `len < end`, and `end` is within the buffer's capacity (`new`), so the place is
+        // within its allocation; the buffer is borrowed by the room, so nothing else moves or
+        // reads it meanwhile.
+        unsafe {
+            debug_assert!(
+                self.len == 0 || (*self.base.add(self.len - 1)).slot < value.slot,
+                "spring of slot {} appended after one of a later slot",
+                value.slot
+            );
+            self.base.add(self.len).write(value);
         }
-        self.end_visit();
+        self.len += 1;
+    }
+}
+
+impl Drop for SpringRoom<'_> {
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    fn drop(&mut self) {
+        // SAFETY: the places below `len` were initialised: those before the room by the buffer,
+        // the others by `append`; `len <= end`, within the capacity (`new`, `append`).
+        unsafe { self.next.set_len(self.len) };
     }
 }
 
@@ -509,6 +587,18 @@ impl Pool {
 mod tests {
     use super::*;
     use glam::DVec3;
+
+    impl SpringRoom<'_> {
+        /// [`SpringRoom::write`] by slot number.
+        fn append_nonzero(&mut self, slot: u32, value: TangentialSpring) {
+            if value != TangentialSpring::default() {
+                self.append(HeldSpring {
+                    spring: value,
+                    slot,
+                });
+            }
+        }
+    }
 
     fn spring(x: f64) -> TangentialSpring {
         TangentialSpring {
@@ -742,6 +832,39 @@ mod tests {
     }
 
     #[test]
+    fn a_room_keeps_the_springs_written_into_it_and_no_zero_spring() {
+        let mut pool = Pool::default();
+        {
+            let mut room = pool.room(3);
+            for (slot, x) in [(2, 1.0), (5, 0.0), (9, 3.0)] {
+                room.append_nonzero(slot, spring(x));
+            }
+        }
+        let held: Vec<_> = pool
+            .next
+            .iter()
+            .map(|h| (h.slot, h.spring.history.x))
+            .collect();
+        assert_eq!(held, [(2, 1.0), (9, 3.0)]);
+        // The next room starts after them.
+        pool.room(1).append_nonzero(12, spring(4.0));
+        assert_eq!(pool.next.len(), 3);
+        assert_eq!(pool.next[2].slot, 12);
+    }
+
+    #[test]
+    #[should_panic(expected = "more springs written than the room was made for")]
+    fn a_room_refuses_more_springs_than_it_was_made_for() {
+        // The buffer has capacity to spare (an eighth more and 16): the room's count, not the
+        // capacity, bounds what is written.
+        let mut pool = Pool::default();
+        let mut room = pool.room(2);
+        for slot in 0..3 {
+            room.append_nonzero(slot, spring(1.0));
+        }
+    }
+
+    #[test]
     #[cfg(debug_assertions)]
     #[should_panic(expected = "appended after one of a later slot")]
     fn a_pass_refuses_a_spring_appended_out_of_slot_order() {
@@ -825,7 +948,7 @@ mod tests {
                                 if !apart {
                                     let before = springs.read(p, &mut note);
                                     let after = spring(before.history.x + 1.0);
-                                    springs.write(p, after);
+                                    springs.room(1).write(p, after);
                                 }
                             }
                         }

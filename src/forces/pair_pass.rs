@@ -509,6 +509,8 @@ fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     // together): `Some` known at compile time, so the loop tests nothing per contact.
     let torque =
         FRICTION.then(|| (targets.torque.as_ref()).expect("tangential springs without torques"));
+    // Without friction an empty room in an empty pool, which nothing writes to.
+    let mut room = springs.room(if FRICTION { filled } else { 0 });
     for (lane, pair) in pairs.first(filled).enumerate() {
         let LanePair {
             owner,
@@ -549,7 +551,7 @@ fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         }
         // The spring last: its pool's bookkeeping then holds no particle index across it.
         if FRICTION {
-            springs.write(slot, out.spring());
+            room.write(slot, out.spring());
         }
     }
 }
