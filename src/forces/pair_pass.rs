@@ -491,7 +491,11 @@ fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
 ) {
     // Every filled lane is a touching pair, met once.
     summary.pair_contacts += filled;
-    let heat = targets.heat.as_ref().filter(|_| HEAT);
+    // A pass compiled with conduction has its heat targets (`forces::compute` chooses the
+    // build by them): `Some` known at compile time, so the loop tests nothing per contact (the
+    // option was loaded from the stack and tested at every contact).
+    let heat =
+        HEAT.then(|| (targets.heat.as_ref()).expect("a pass with conduction without heat targets"));
     if filled > 0 {
         lanes::run::<BONDS, FRICTION>(set, model, interval, lanes);
         if let Some(h) = heat {
@@ -702,7 +706,12 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     // loaded and tested at every contact).
     let omega = FRICTION
         .then(|| (reads.angular_velocity).expect("tangential springs without angular velocities"));
-    let melted = targets.heat.as_ref().filter(|_| HEAT).map(|h| h.melted);
+    // `Some` known at compile time where the pass has conduction, as in `write_lanes`.
+    let melted = HEAT.then(|| {
+        (targets.heat.as_ref())
+            .expect("a pass with conduction without heat targets")
+            .melted
+    });
     let slab = batch.slab;
     let uniform = batch.lanes.uniform_material();
     let Some(&first) = batch.kept.0.first() else {
