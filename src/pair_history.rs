@@ -539,8 +539,13 @@ impl<'p> SpringRoom<'p> {
     /// If the room is full: more springs written than it was made for.
     #[inline(always)]
     pub fn write(&mut self, p: Slot<'_>, value: TangentialSpring) {
+        self.write_slot(u32::try_from(p.index()).expect("slots fit in u32"), value);
+    }
+
+    /// [`Self::write`] by slot number (which the tests name without a list's slot token).
+    #[inline(always)]
+    fn write_slot(&mut self, slot: u32, value: TangentialSpring) {
         if value != TangentialSpring::default() {
-            let slot = u32::try_from(p.index()).expect("slots fit in u32");
             self.append(HeldSpring {
                 spring: value,
                 slot,
@@ -587,18 +592,6 @@ impl Drop for SpringRoom<'_> {
 mod tests {
     use super::*;
     use glam::DVec3;
-
-    impl SpringRoom<'_> {
-        /// [`SpringRoom::write`] by slot number.
-        fn append_nonzero(&mut self, slot: u32, value: TangentialSpring) {
-            if value != TangentialSpring::default() {
-                self.append(HeldSpring {
-                    spring: value,
-                    slot,
-                });
-            }
-        }
-    }
 
     fn spring(x: f64) -> TangentialSpring {
         TangentialSpring {
@@ -837,7 +830,7 @@ mod tests {
         {
             let mut room = pool.room(3);
             for (slot, x) in [(2, 1.0), (5, 0.0), (9, 3.0)] {
-                room.append_nonzero(slot, spring(x));
+                room.write_slot(slot, spring(x));
             }
         }
         let held: Vec<_> = pool
@@ -847,7 +840,7 @@ mod tests {
             .collect();
         assert_eq!(held, [(2, 1.0), (9, 3.0)]);
         // The next room starts after them.
-        pool.room(1).append_nonzero(12, spring(4.0));
+        pool.room(1).write_slot(12, spring(4.0));
         assert_eq!(pool.next.len(), 3);
         assert_eq!(pool.next[2].slot, 12);
     }
@@ -860,7 +853,7 @@ mod tests {
         let mut pool = Pool::default();
         let mut room = pool.room(2);
         for slot in 0..3 {
-            room.append_nonzero(slot, spring(1.0));
+            room.write_slot(slot, spring(1.0));
         }
     }
 
