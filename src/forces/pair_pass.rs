@@ -513,8 +513,9 @@ fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     // together): `Some` known at compile time, so the loop tests nothing per contact.
     let torque =
         FRICTION.then(|| (targets.torque.as_ref()).expect("tangential springs without torques"));
-    // Without friction an empty room in an empty pool, which nothing writes to.
-    let mut room = springs.room(if FRICTION { filled } else { 0 });
+    // Room for the round's springs, made only where the pass has friction (`None` known at
+    // compile time without it, as `torque`).
+    let mut room = FRICTION.then(|| springs.room(filled));
     for (lane, pair) in pairs.first(filled).enumerate() {
         let LanePair {
             owner,
@@ -554,7 +555,7 @@ fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
             h.sums.update(partner, |s| s.add(-flow, conductance));
         }
         // The spring last: its pool's bookkeeping then holds no particle index across it.
-        if FRICTION {
+        if let Some(room) = room.as_mut() {
             room.write(slot, out.spring());
         }
     }
