@@ -6,9 +6,9 @@
 //! times, and about 300-370 ns at others (cores farther apart: another die or socket); the host
 //! moves between these every few minutes. A 2-thread run of the 19.2k LIGGGHTS bed reads about
 //! 5.0e7 particle-steps/s on the near cores and 3.9e7 on the farthest, while two independent
-//! 1-thread runs, one per core, lose nothing on either (docs/performance.md, fifty-third round):
-//! what the team's members share (the slabs at the two cuts between their shares, an item taken
-//! from the back of another's share) costs several times as much on far cores.
+//! 1-thread runs, one per core, lose nothing on either (docs/performance-log.md, fifty-third
+//! round): what the team's members share (the slabs at the two cuts between their shares, an
+//! item taken from the back of another's share) costs several times as much on far cores.
 //! `benches/liggghts_compare.sh` prints this reading with each run of two threads or more.
 //!
 //! The two threads are pinned to the first two cores the process may run on (the team's members

@@ -3,7 +3,7 @@
 
 Reads the frames of an am-sim run (written every few steps; `benches/detection_bound.sh` makes
 them) and replays the run's motion between them to count, per particle-step, how many pair tests
-four ways of finding the touching pairs need (docs/performance.md, forty-first and forty-sixth
+four ways of finding the touching pairs need (docs/performance-log.md, forty-first and forty-sixth
 rounds):
 
 * **the floor**: only the touching pairs, which need their laws anyway, as an oracle would;

@@ -2,7 +2,7 @@
 # What any contact detection could save on a bed: runs SCENE for STEPS steps with a frame every
 # EVERY steps, then counts with benches/detection_bound.py the pair tests per particle-step of
 # the touching pairs alone (the floor), of am-sim's near lists at several near skins, of
-# per-entry thresholds on each pair's own displacement bound (docs/performance.md, forty-first
+# per-entry thresholds on each pair's own displacement bound (docs/performance-log.md, forty-first
 # round) and of near entries skipped until the bed's budget reaches their gap at the refresh
 # (forty-sixth round). Needs h5py and numpy (scripts/setup --checks installs them).
 #

@@ -3,10 +3,10 @@
 # its bed.h5, written right after the deposition) imported into the same scene without the
 # deposition and without output, so that the scan's step (laser, boundary heat, conduction,
 # bonds) can be timed or counted without the two minutes of deposition before it
-# (docs/performance.md, thirty-first round).
+# (docs/performance-log.md, thirty-first round).
 #
 # PHASE=rest measures the same bed at rest instead: the deposition's packed end, where the
-# flagship spends most of its deposition (docs/performance.md, thirty-third round). Its scene
+# flagship spends most of its deposition (docs/performance-log.md, thirty-third round). Its scene
 # drops the laser, the heat and the bonds as well ([laser], [thermal], [bond], the plate's
 # temperature), so what is left is the mechanics of the flagship's bed: friction, rolling
 # resistance and the plate, with twice the pair contacts and seven times the wall contacts per

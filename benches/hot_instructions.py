@@ -7,7 +7,7 @@ particle-step; this says which ones. It reads a callgrind profile taken with
 functions whose names match a pattern, each instruction with its count divided by a unit (the
 run's particle-steps, say), so that a loop's body reads as instructions per particle-step: what
 a change to the fill, the write-back or the sift must take off, instruction by instruction.
-Rounds 28, 33 and 40 of docs/performance.md made such profiles by hand; `hot_instructions.sh`
+Rounds 28, 33 and 40 of docs/performance-log.md made such profiles by hand; `hot_instructions.sh`
 runs the whole chain on a scene.
 
 usage: benches/hot_instructions.py PROFILE BINARY PATTERN [--unit N] [--floor F] [--lines]

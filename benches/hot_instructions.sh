@@ -3,7 +3,7 @@
 # with how many times it ran per particle-step on a scene (callgrind, 1 thread). Where
 # `benches/instructions.sh` says which part of the step takes the instructions, this says which
 # instructions they are: the loads of a lane, a pointer reloaded from the stack, a bounds check,
-# the spring ring's bookkeeping. The step waits on instructions (docs/performance.md, eighteenth
+# the spring ring's bookkeeping. The step waits on instructions (docs/performance-log.md, eighteenth
 # round), so this is where a change to the fill, the write-back or the sift is planned and
 # checked (fortieth round).
 #

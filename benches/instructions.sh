@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Instructions per particle-step of the run loop, by part of the step, on the LIGGGHTS benchmark
 # bed: a measure of the step that does not move with the hour. On the shared 2-core host the
-# clock scatters by up to a quarter from run to run (docs/performance.md, twenty-fifth round),
+# clock scatters by up to a quarter from run to run (docs/performance-log.md, twenty-fifth round),
 # so a change of a few per cent cannot be timed there; its instruction count can, exactly. The
 # step waits on instructions rather than on memory (eighteenth round), so fewer instructions in
 # the fill, the write-back or the sift is what a faster step needs. Time still decides: confirm

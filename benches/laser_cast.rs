@@ -4,7 +4,7 @@
 //! The window of `scenes/bed.toml` (40 µm spot, 2 µm cells: a raster of 120 × 120 rays) over a
 //! pile of about 150 lit spheres of its powder's sizes (7.5-30 µm), two layers deep, about as
 //! many as its bed puts under the beam. The flagship casts anew every few steps, whenever the
-//! beam or a lit particle has moved half a cell; the fifty-fifth round of docs/performance.md
+//! beam or a lit particle has moved half a cell; the fifty-fifth round of docs/performance-log.md
 //! made the cast go disk by disk (1.16× on the flagship's scan at 2 threads).
 
 use am_sim::bed::rng::SplitMix64;

@@ -10,13 +10,13 @@
 # which include its checks at the outputs in that window. Until the forty-eighth round am-sim was
 # timed over its whole run loop of 500 + 5000 steps, warm-up included (its bed holds fewer
 # contacts then than at the window's end): 0.98-1.05 times the window's figure, printed at the
-# end (docs/performance.md, forty-eighth round).
+# end (docs/performance-log.md, forty-eighth round).
 #
 # am-sim checks its state (energy balance, stability limit, overlaps, every value finite) every
 # 500 steps here, at its series rows: in.bench prints LIGGGHTS' thermo only at its runs' ends
 # (`thermo 0`). A scene without an [output] table checks 100 times per run, which cost 3.7 % of
 # the speed on the 19.2k bed and 4.8 % on the 97.2k bed on the Intel 207 (alternating runs,
-# docs/performance.md, sixty-fifth round); the readings before that round were taken so. The
+# docs/performance-log.md, sixty-fifth round); the readings before that round were taken so. The
 # guards that run every step (the forces' finite test, the largest overlap) run here too.
 #
 # The order of the two programs alternates from repetition to repetition.
@@ -48,8 +48,9 @@ AM_SIM=$(realpath target/release/am-sim)
 # How far apart the host has put the cores (benches/core_latency.rs), read right before each run of
 # two threads or more, of either program: on the 2-vCPU guests it switches every few minutes
 # between about 60-80 ns (cores sharing a third-level cache) and about 330 ns (cores far apart),
-# and the 2-thread speeds with it, am-sim's more than LIGGGHTS' (docs/performance.md, fifty-third
-# round). A reading taken before the pair instead missed switches in the 20 s of LIGGGHTS' run.
+# and the 2-thread speeds with it, am-sim's more than LIGGGHTS' (docs/performance-log.md,
+# fifty-third round). A reading taken before the pair instead missed switches in the 20 s of
+# LIGGGHTS' run.
 LATENCY=$(cargo bench --bench core_latency --no-run --message-format=json 2>/dev/null |
   python3 -c 'import json, sys
 for m in map(json.loads, sys.stdin):
@@ -59,7 +60,7 @@ for m in map(json.loads, sys.stdin):
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 # The host first: the ratio moves with it (on a Zen 3 without AVX-512 am-sim's contact laws run
-# in AVX2, 1.6 times their AVX-512 time: docs/performance.md, thirty-fifth round), so a reading
+# in AVX2, 1.6 times their AVX-512 time: docs/performance-log.md, thirty-fifth round), so a reading
 # names the processor and its caches; each am-sim line below names the laws' build it ran.
 cpu() { awk -F': ' -v key="$1" '$1 ~ "^"key"[[:space:]]*$" {print $2; exit}' /proc/cpuinfo; }
 cache() { lscpu 2>/dev/null | awk -F': *' -v key="$1" '$1 == key {print $2; exit}'; }

@@ -5,7 +5,7 @@
 temperatures' update) into `loop_avx2` and `loop_avx512`, functions built for those instruction
 sets. A function the kernel reaches and the compiler leaves out of line is compiled for the
 binary's own target (SSE2) and called once per lane: the lanes are no longer a vector. In a
-throw-away build of the thirty-eighth round (docs/performance.md) three laws went out of line
+throw-away build of the thirty-eighth round (docs/performance-log.md) three laws went out of line
 that way and the 19.2k LIGGGHTS bed's step ran at 0.30 times its speed; in the tree as it was,
 `contact::normal_force` was called per lane from every kernel with bond laws. No timing shows
 such a cliff exactly on a noisy host, the disassembly does: this check reads every call and jump

@@ -60,18 +60,18 @@ enum Met {
 /// pass's springs in all, as the ring in one buffer that this replaced held (the eleventh
 /// round's ring: 32 B per contact less than two buffers per slab). Where the ring read and
 /// wrote one buffer, wrapping, and counted its unread and free places at every read and append
-/// (26 of the fill's 96 instructions per contact on the 19.2k LIGGGHTS bed, docs/performance.md,
-/// sixty-fifth round), a read here is a test of the cursor against the length (the step 321.0 →
-/// 311.7 instructions per particle-step, sixty-sixth round), and the write-back writes a round
-/// of lanes' springs into room made once for the round ([`Pool::room`]), its place in a
-/// register (311.7 → 308.8, sixty-eighth round).
+/// (26 of the fill's 96 instructions per contact on the 19.2k LIGGGHTS bed,
+/// docs/performance-log.md, sixty-fifth round), a read here is a test of the cursor against the
+/// length (the step 321.0 → 311.7 instructions per particle-step, sixty-sixth round), and the
+/// write-back writes a round of lanes' springs into room made once for the round
+/// ([`Pool::room`]), its place in a register (311.7 → 308.8, sixty-eighth round).
 ///
 /// The state is the pass's cursor itself, so that the pair pass takes a slab's pool out of the
 /// histories for a round of its contacts ([`OpenHistories::with_own`]) and walks it as a value
 /// of its own, which the compiler keeps in registers or the pass's stack frame. Reached through
 /// the shared histories at every contact, the pool's fields had been loaded through a pointer,
 /// tested and stored again for each read and append: taking the pool per round took 9.7 of the
-/// 364.3 instructions per particle-step of the 19.2k LIGGGHTS bed (docs/performance.md,
+/// 364.3 instructions per particle-step of the 19.2k LIGGGHTS bed (docs/performance-log.md,
 /// fifty-ninth round).
 #[derive(Debug, Clone, Default)]
 pub struct Pool {

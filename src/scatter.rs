@@ -158,7 +158,7 @@ pub struct NearPair {
 /// entry). So the sift of the near entries runs without an image test in its loop, and takes
 /// the entries that need one apart: the test of an image flag in each entry, held in the
 /// slot's high bit for its owner, was 12.1 of the 19.2k LIGGGHTS bed's 89.3 sift instructions
-/// per particle-step (docs/performance.md, sixty-fourth round). The places take 4 bytes per
+/// per particle-step (docs/performance-log.md, sixty-fourth round). The places take 4 bytes per
 /// crossing entry, about 2 % of that bed's entries.
 #[derive(Debug, Clone, Default)]
 pub struct NearList {

@@ -71,7 +71,7 @@ const LARGEST_LANES: usize = 8;
 /// the last build). `f64::max` over the values one at a time is a scalar chain, each value's
 /// `max` waiting on the last with a NaN select per value (`vmaxsd`, `vcmpunordsd`,
 /// `vblendvpd`: about 10 instructions per particle for the drift's speed, forty-second round of
-/// docs/performance.md); here each lane keeps its larger value by a comparison, one vector
+/// docs/performance-log.md); here each lane keeps its larger value by a comparison, one vector
 /// `max` per register of values in a [`Kernel`]'s vector builds. A maximum is exact in any
 /// order, so the result is bitwise that of the chain, and a NaN value is passed over as
 /// `f64::max` passes it (a comparison with NaN is false).

@@ -83,7 +83,7 @@ fn the_bed_keeps_as_many_contacts_as_in_liggghts() {
         100.0 * (walls / lig_walls - 1.0)
     );
     // Measured −2.0 % and −0.4 % (+0.4 % and −1.0 % at the end of the 5500-step window,
-    // docs/performance.md). The coordination moves from 1.30 to 1.38 over these steps and the
+    // docs/performance-log.md). The coordination moves from 1.30 to 1.38 over these steps and the
     // contacts opening and closing differ in detail, hence 5 %. A start without the spins (a
     // plain `dump custom id x y z vx vy vz radius`) compacts instead, about 16 % above.
     assert!((contacts / lig_contacts - 1.0).abs() < 0.05);

@@ -14,7 +14,7 @@
 //! `#[inline(always)]`: a law the compiler leaves out of line is built for the baseline and
 //! called lane by lane from the AVX2 and AVX-512 builds (`simd::Kernel`). `contact::normal_force`
 //! was, from every kernel with bond laws; a throw-away build with three laws out of line ran the
-//! LIGGGHTS bed's step at 0.30 times its speed (docs/performance.md, thirty-eighth round). CI's
+//! LIGGGHTS bed's step at 0.30 times its speed (docs/performance-log.md, thirty-eighth round). CI's
 //! `scripts/check_kernels.py` finds such calls in the release binary.
 
 pub mod bond;

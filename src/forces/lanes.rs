@@ -112,7 +112,7 @@ pub(super) struct ContactOutput {
 /// ([`ContactLanes::output`]), the parts a pass uses (fourteen with friction) were loaded at
 /// once and held across the write-back's stores; read at their use, the write-back of the
 /// 19.2k LIGGGHTS bed took 58.5 instructions per particle-step instead of 61.8
-/// (docs/performance.md, sixty-first round).
+/// (docs/performance-log.md, sixty-first round).
 #[derive(Clone, Copy)]
 pub(super) struct OutputOf<'l> {
     lanes: &'l ContactLanes,

@@ -185,7 +185,7 @@ pub fn set_prefetch(mode: &str) -> Result<(), String> {
 /// instructions and gain nothing: about 20 per particle-step on the 19.2k bed with the first
 /// set (+5 %), and by the clock 0.94-0.98 there on the Zen 3 with the full set; so they are left
 /// out below 8 MiB of those arrays (about 56,000 particles)
-/// (docs/performance.md, thirty-fourth and thirty-fifth rounds).
+/// (docs/performance-log.md, thirty-fourth and thirty-fifth rounds).
 /// `am-sim --prefetch on` or `off` overrides the rule.
 #[must_use]
 pub fn worth_prefetching(particles: usize) -> bool {
@@ -626,7 +626,7 @@ impl ForceSummary {
     /// As [`Self::observe_overlap`] for the ratio `overlap / radius`, divided only where it can
     /// reach the largest so far: on the flagship's scan, where 45 % of the particles touch the
     /// plate, the particle pass took 299-302 µs a call at 1 thread this way against 305-312
-    /// with a division for every one (docs/performance.md, fifty-fifth round).
+    /// with a division for every one (docs/performance-log.md, fifty-fifth round).
     /// `fl(overlap / radius) ≥ M` needs `overlap ≥ M · radius · (1 − 2⁻⁵³)`; the test's margin of
     /// 1e-9 is far wider than the rounding of its products, so a ratio it skips could never
     /// have reached M, and the summary is the same to the bit.

@@ -178,7 +178,7 @@ const NEAR_PER_ROUND: usize = 256;
 /// How many near entries ahead of its test the sift asks for a partner's position and radius,
 /// where it prefetches ([`super::worth_prefetching`]): on the 97.2k LIGGGHTS bed at 1 thread on
 /// a Zen 3 host, 16 made the step 1.03 times faster (4 alternating pairs, 1.011-1.033), 32 no
-/// faster than 16 (docs/performance.md, thirty-fifth round). The first entries of each round
+/// faster than 16 (docs/performance-log.md, thirty-fifth round). The first entries of each round
 /// of [`NEAR_PER_ROUND`] go without: the round's iterator does not reach into the next.
 const SIFT_AHEAD: usize = 16;
 
@@ -267,7 +267,7 @@ struct LanePair<'s> {
 /// The pairs of a batch's lanes ([`LanePair`]), by column: one array per part, so that the
 /// fill stores a lane's pair and the write-back loads it at the lane's index, without the
 /// multiplication by the 12-byte record's size (three instructions per contact). On the 19.2k
-/// LIGGGHTS bed: 346.4 → 342.5 instructions per particle-step (docs/performance.md,
+/// LIGGGHTS bed: 346.4 → 342.5 instructions per particle-step (docs/performance-log.md,
 /// sixty-third round).
 #[derive(Debug, Clone, Copy)]
 struct LanePairs<'s> {
@@ -352,7 +352,7 @@ impl<'s> KeptSlots<'s> {
     /// The room is reserved once per call and not initialised, and the writes test no bounds:
     /// the vector's initialised scratch, grown by copies of a sample slot, cost the sifts a
     /// bounds check per candidate and each slab visit the sample's copies (6.1 of the 19.2k
-    /// LIGGGHTS bed's 95.4 sift instructions per particle-step, docs/performance.md,
+    /// LIGGGHTS bed's 95.4 sift instructions per particle-step, docs/performance-log.md,
     /// sixty-fourth round).
     #[inline(always)]
     #[allow(unsafe_code)]
@@ -839,7 +839,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
 /// and with `HEAT` temperature and heat sums. The sift read the partners' positions and radii;
 /// these lines it did not. With every datum in the cache a prefetch costs an instruction; on a
 /// bed larger than the cache a partner's lines are otherwise missed one contact after the other
-/// (docs/performance.md, thirty-fourth round). The lost energy and the torque, which the
+/// (docs/performance-log.md, thirty-fourth round). The lost energy and the torque, which the
 /// write-back adds to, were left out at first: asking for them too made the 97.2k bed 1.07
 /// times faster again at 1 thread on a Zen 3 host (1.045 with heat; thirty-fifth round). The
 /// temperature and heat sums gained nothing there. On a Zen 4 host, where 37 % of the heated

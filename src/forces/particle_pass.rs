@@ -207,13 +207,13 @@ type ChunkWalls<'a> = (&'a [WallKey], Option<&'a mut [TangentialSpring]>);
 /// prefetches: on the 97.2k LIGGGHTS bed at 1 thread, 8 ahead made the step 1.02-1.04 times
 /// faster than asking for all of a chunk's particles near a wall at once (two sets of 6 pairs of runs
 /// at once, `benches/paired.sh`), 16 no faster than 8 and 4 no faster either
-/// (docs/performance.md, forty-eighth round).
+/// (docs/performance-log.md, forty-eighth round).
 const LISTED_AHEAD: usize = 8;
 
 /// Asks the cache for the lines of `particle`'s position, radius, velocity and force, and
 /// with rotation its spin and torque: what its wall contacts read and write. The wall
 /// candidates' particles are spread over the arrays: on a bed larger than the cache
-/// each one's lines were otherwise missed one after the other (docs/performance.md,
+/// each one's lines were otherwise missed one after the other (docs/performance-log.md,
 /// thirty-fourth round).
 #[inline(always)]
 fn prefetch_particle<'v>(

@@ -5,7 +5,7 @@
 //! microseconds per parallel region and scatters a pass's items over the threads anew each
 //! time. A step of the 19.2k LIGGGHTS bed at 2 threads lasts about half a millisecond and opens
 //! five regions: rayon's spinning and sleeping took about 6 % of the samples there, and a phase
-//! of the pair pass lasted 2-6 % longer than its busier thread (docs/performance.md, thirteenth
+//! of the pair pass lasted 2-6 % longer than its busier thread (docs/performance-log.md, thirteenth
 //! round). A team member takes its share first (the same contiguous part of the particles and
 //! slabs at every pass, so the same data in its cache), then helps the others from the back of
 //! theirs, all but the item each is about to reach ([`Team::fold_items`]: on a shared machine a
@@ -59,7 +59,7 @@ const SPIN_BEFORE_NAPS: Duration = Duration::from_micros(100);
 /// particle-steps per second with yields (six runs), 0.95-1.06e7 with naps (three runs; 1.1e7
 /// at 1 thread beside the loop). Alone, 22 alternating runs at 2 threads read no difference
 /// within a noisy hour's spread (medians 0.946 and 0.973, pair medians 0.992 and 1.040;
-/// docs/performance.md, fifty-ninth round).
+/// docs/performance-log.md, fifty-ninth round).
 fn nap() {
     std::thread::sleep(Duration::from_micros(20));
 }
@@ -289,7 +289,7 @@ impl Team {
     /// from the back of the others' shares: a member whose core the host took for a while (this
     /// machine is shared) is helped instead of waited for. It leaves each share's next item to
     /// its owner, whose cache holds that item's data: on cores far apart, a helper took several
-    /// times as long over it (docs/performance.md, fifty-sixth round).
+    /// times as long over it (docs/performance-log.md, fifty-sixth round).
     pub fn fold_items<T: Send, R: Send>(
         &self,
         items: Vec<T>,
@@ -546,7 +546,7 @@ impl Claims {
     /// owner's cache, so a helper that takes it takes longer than its owner would. Taking it
     /// while the owner finished the one before made the opening pass's calls (kicks and drift)
     /// on the flagship's deposition at 2 threads last 51-55 µs instead of 34, on cores far apart
-    /// (docs/performance.md, fifty-sixth round).
+    /// (docs/performance-log.md, fifty-sixth round).
     fn claim(&self, own: bool) -> Option<usize> {
         let mut current = self.0.load(Ordering::Acquire);
         loop {

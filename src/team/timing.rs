@@ -5,7 +5,7 @@
 //! call of [`super::fold_items`] reads the clock when it is posted, when each member starts,
 //! when it has done its own share and when it has done its last item (taken from the others
 //! included), and adds them to the totals of the pass it belongs to, named by the calling
-//! thread's [`PassName`]. The docs/performance.md rounds that took 2-thread runs apart per pass
+//! thread's [`PassName`]. The docs/performance-log.md rounds that took 2-thread runs apart per pass
 //! (fifty-third and fifty-fourth) read these figures.
 
 use std::cell::Cell;
