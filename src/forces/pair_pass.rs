@@ -792,7 +792,7 @@ fn handle_kept<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
                 separation,
                 [r_a, r_b],
                 [reads.mass.get(owner), reads.mass.get(partner)],
-                [reads.velocity.get(owner), reads.velocity.get(partner)],
+                reads.velocity.get(owner) - reads.velocity.get(partner),
             );
             // With one material the lanes hold its parameters already: then none is loaded.
             if !uniform {
