@@ -375,9 +375,10 @@ fn an_isolated_bed_conserves_its_heat() {
     assert!(t.heat_residual.abs() < 1e-10, "{}", t.heat_residual);
 }
 
-/// The force pass's largest `G_i / C_i` (M.49), which sets the thermal substeps, is the
-/// largest over every particle when heat flows only through contacts: the particle pass then
-/// visits only the spheres near a wall, and takes the others' rates from their chunks' sums.
+/// The run's largest `G_i / C_i` (M.49), which sets the thermal substeps, is the largest over
+/// every particle when heat flows only through contacts: the particle pass then visits only the
+/// spheres near a wall, the step's substep count comes from a bound (the largest G_i over the
+/// smallest C_i), and the diagnostics take the rate from the step's heat sums.
 /// A packed cube of 1000 spheres in the column's box, each pressed a little into its six
 /// neighbours: the inner ones hold the most contacts, and none of them is near a wall. The run's
 /// ratio dt · max G/C must equal dt over the smallest time constant computed afresh from the

@@ -465,8 +465,8 @@ pub fn compute(
     particles.dissipated = dissipated;
     // Only the pairs that may touch have wall contacts to add. With heat from a laser, or
     // exchanged with the walls, gas or surroundings, every particle has heat to add as well.
-    // With heat, the particle pass takes the largest G_i / C_i of every chunk's particles at
-    // the chunk's end.
+    // There the particle pass takes the largest G_i / C_i of every chunk's particles at the
+    // chunk's end; else the pair pass's largest G_i bounds it.
     let every_particle = heat
         .as_ref()
         .is_some_and(|h| h.laser_power.is_some() || h.model.has_boundary_exchange());
@@ -598,8 +598,16 @@ pub(crate) fn plane_overlap(wall: &Wall, position: DVec3, radius: f64) -> f64 {
 /// index on ties): the inputs of the run's per-step guards (docs/stability.md).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ForceSummary {
-    /// `max G_i / C_i` [1/s] with `[thermal]`, 0 otherwise (M.49).
-    pub max_heat_rate: f64,
+    /// `max G_i / C_i` [1/s] (M.49), where the pass took it: with `[thermal]` and a laser or a
+    /// boundary exchange, whose particle pass finishes every particle's heat sums and takes
+    /// their largest at each chunk's end while they are at hand. `None` otherwise.
+    pub max_heat_rate: Option<f64>,
+    /// `max G_i` [W/K] (M.49) over the sums the pair pass left, 0 without `[thermal]`. Every
+    /// G_i starts the pass at 0 and only grows as contacts add their conductances (H ≥ 0), so
+    /// the largest value any addition leaves is the largest G_i. With the smallest heat
+    /// capacity it bounds `max G_i / C_i` for the step's substep count
+    /// ([`crate::thermal::HeatRate`]) without a pass over the sums of its own.
+    pub max_conductance: f64,
     /// Largest overlap of any contact relative to the smaller radius of its pair (the
     /// particle's radius, against a wall).
     pub max_overlap_ratio: f64,
@@ -657,7 +665,11 @@ impl ForceSummary {
     #[must_use]
     fn merge(mut self, other: Self) -> Self {
         self.observe_overlap(other.max_overlap_ratio, other.max_overlap_particle);
-        self.max_heat_rate = self.max_heat_rate.max(other.max_heat_rate);
+        self.max_heat_rate = match (self.max_heat_rate, other.max_heat_rate) {
+            (Some(a), Some(b)) => Some(a.max(b)),
+            (rate, None) | (None, rate) => rate,
+        };
+        self.max_conductance = self.max_conductance.max(other.max_conductance);
         self.pair_contacts += other.pair_contacts;
         self.first_non_finite_force = crate::integrate::lowest_particle(
             self.first_non_finite_force,

@@ -153,25 +153,22 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         }
         round.write_back::<ROTATION>(model, (set, interval), &outputs, springs, summary);
         round.finish(&outputs);
-        // Without laser and exchange no particle has heat to add: its largest G_i / C_i is
-        // taken over the chunk's whole range below.
+        // Without laser and exchange no particle has heat to add, and the pair pass's largest
+        // G_i bounds the largest G_i / C_i (`ForceSummary::max_conductance`).
         if let Some(h) = heat.filter(|_| every_particle) {
             let mut heat_round = HeatRound::new(h, &model.walls);
             for window in chunk.windows() {
                 heat_round.add(h, state, set, window.owner());
             }
             heat_round.finish(h, set);
-        }
-        // With heat, the largest G_i / C_i (M.49) of the chunk's range, from the sums as they
-        // now stand: the pair pass's, and the boundary exchange's where the pass visits every
-        // particle. One vector kernel over the chunk, whichever particles were visited.
-        if let Some(h) = heat {
+            // The largest G_i / C_i (M.49) of the chunk's finished sums, which the round has
+            // just written: one vector kernel over the chunk while they are in the cache.
             let rate = h.sums.open_chunk(chunk).inspect_chunk_beside(
                 chunk,
                 h.heat_capacity,
                 crate::thermal::max_heat_rate,
             );
-            summary.max_heat_rate = summary.max_heat_rate.max(rate);
+            summary.max_heat_rate = Some(summary.max_heat_rate.map_or(rate, |m| m.max(rate)));
         }
         // The chunk's forces are finished (the walls were the last to add): every particle of
         // its range is tested, visited or not, while the chunk is at hand.

@@ -246,7 +246,13 @@ impl Simulation {
                     .fold(f64::NEG_INFINITY, f64::max),
                 melted: t.melted.iter().filter(|m| **m).count(),
                 substeps: t.substeps,
-                time_step_ratio: self.model.dt * self.force_summary.max_heat_rate,
+                // Where the step took no largest G_i / C_i (its bound sufficed), its first
+                // substep's heat sums are still at hand: a step of more substeps took it.
+                time_step_ratio: self.model.dt
+                    * self
+                        .force_summary
+                        .max_heat_rate
+                        .unwrap_or_else(|| thermal::max_heat_rate_of(t)),
                 heat_residual: 0.0,
                 stored: stored + self.removed.enthalpy_change,
                 exchanged,

@@ -35,6 +35,8 @@ use crate::thermal::{self, ThermalState};
 
 mod diagnostics;
 mod restart;
+#[cfg(test)]
+mod tests;
 
 pub use diagnostics::{Diagnostics, GuardTrip, StabilityLimit, ThermalDiagnostics};
 pub use restart::{RestartState, RotationRestart, ThermalRestart};
@@ -238,14 +240,14 @@ impl Simulation {
             // (about 100 B per particle at once): every step refills the heat flows before it
             // reads them, and only a step of several substeps keeps per-slot conductances,
             // computing them anew.
-            self.force_summary.max_heat_rate = thermal::max_stiffness(
+            self.force_summary.max_heat_rate = Some(thermal::max_stiffness(
                 model,
                 &self.model.walls,
                 self.model.periodic.as_ref(),
                 &self.particles,
                 &self.neighbors,
                 state,
-            );
+            ));
             state.conductance = Vec::new();
         }
         self.mark_start();
@@ -704,10 +706,11 @@ impl Simulation {
         }
     }
 
-    /// Step 6 of the step order: temperatures over dt, the first substep's flows given.
-    fn advance_temperatures(&mut self, first_flows: Option<f64>) {
+    /// Step 6 of the step order: temperatures over dt, the first substep's flows given. Keeps
+    /// the first substep's `max G_i / C_i` in the force summary where it was taken.
+    fn advance_temperatures(&mut self, first_flows: Option<thermal::HeatRate>) {
         if let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) {
-            thermal::advance(
+            let taken = thermal::advance(
                 model,
                 &self.model.walls,
                 &self.particles,
@@ -720,6 +723,7 @@ impl Simulation {
                     periodic: self.model.periodic.as_ref(),
                 },
             );
+            self.force_summary.max_heat_rate = self.force_summary.max_heat_rate.or(taken);
         }
     }
 
@@ -809,7 +813,15 @@ impl Simulation {
         let summary = self.compute_forces(Evaluation::Step);
         self.peak_overlap_ratio = self.peak_overlap_ratio.max(summary.max_overlap_ratio);
         self.force_summary = summary;
-        let first_flows = self.thermal.is_some().then_some(summary.max_heat_rate);
+        let first_flows = self
+            .thermal
+            .as_ref()
+            .map(|state| match summary.max_heat_rate {
+                Some(rate) => thermal::HeatRate::Exact(rate),
+                None => {
+                    thermal::HeatRate::at_most(summary.max_conductance, state.min_heat_capacity)
+                }
+            });
         self.advance_temperatures(first_flows);
     }
 

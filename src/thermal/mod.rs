@@ -288,6 +288,11 @@ pub struct ThermalState {
     /// The heat balance compares particle by particle: a sum of small changes, not the
     /// difference of two large sums, whose round-off would swamp a bed's conduction.
     pub start_enthalpy: Vec<f64>,
+    /// The smallest heat capacity `min_i C_i` [J/K] (infinite without particles), which
+    /// bounds `max G_i / C_i` from the largest G_i ([`HeatRate::AtMost`]). Kept with the
+    /// capacities: taken when they are made and when particles are dropped or reordered
+    /// ([`ThermalState::select`]).
+    pub(crate) min_heat_capacity: f64,
     /// Substeps taken in the last step.
     pub substeps: u32,
     /// Most substeps taken in one step so far.
@@ -302,6 +307,7 @@ impl ThermalState {
         select(&mut self.temperature, order);
         select(&mut self.enthalpy, order);
         select(&mut self.heat_capacity, order);
+        self.min_heat_capacity = smallest(&self.heat_capacity);
         select(&mut self.latent_heat, order);
         select(&mut self.melting_point, order);
         if let Some(evaporation) = &mut self.evaporation {
@@ -442,6 +448,7 @@ impl ThermalState {
             state.temperature.push(t0);
             state.melted.push(t0 >= material.melting_point);
         }
+        state.min_heat_capacity = smallest(&state.heat_capacity);
         state.laser_power = vec![0.0; n];
         state.heat_sums = vec![HeatSums::default(); n];
         state.boundary_flow = vec![0.0; n];
@@ -615,6 +622,11 @@ pub fn max_stiffness(
     heat_flows(model, walls, particles, list, state)
 }
 
+/// The smallest of `values` (infinite for none).
+fn smallest(values: &[f64]) -> f64 {
+    values.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
 /// Largest `G_i / C_i` [1/s] (M.49) of the total conductances `G_i` [W/K] and heat capacities
 /// `C_i` [J/K] as they stand (0 without particles), on the calling thread, in the widest vector
 /// build: the particle pass takes it over each chunk's particles.
@@ -712,14 +724,38 @@ impl crate::simd::Kernel for EnthalpyUpdate<'_> {
     }
 }
 
+/// What the force pass knows of `max_i G_i / C_i` [1/s] (M.49), which sets a step's substep
+/// count ([`advance`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HeatRate {
+    /// The largest `G_i / C_i` itself.
+    Exact(f64),
+    /// A bound from above: `max_i G_i / min_i C_i`. A step whose bound asks for one substep
+    /// takes one, as the exact rate would have it (the count only grows with the rate, and
+    /// rounding keeps that order); only a step whose bound asks for more takes the largest
+    /// `G_i / C_i` itself, in a pass of its own. For a bed of one size and one material, all
+    /// `C_i` equal, the bound is the largest rate to the bit.
+    AtMost(f64),
+}
+
+impl HeatRate {
+    /// The bound `max_i G_i / min_i C_i` [1/s] of the largest conductance `max_conductance`
+    /// [W/K] and the smallest heat capacity `min_capacity` [J/K] (NaN, which asks for the exact
+    /// rate, if both are 0 or infinite).
+    #[must_use]
+    pub fn at_most(max_conductance: f64, min_capacity: f64) -> Self {
+        Self::AtMost(max_conductance / min_capacity)
+    }
+}
+
 /// What [`advance`] needs to know about the step besides the state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepInfo<'a> {
     /// Mechanical time step \[s\].
     pub dt: f64,
-    /// `Some(max G_i / C_i)` [1/s] when the force gather already computed the first substep's
-    /// heat flows.
-    pub first_flows: Option<f64>,
+    /// When the force gather already computed the first substep's heat flows: what it knows of
+    /// their `max G_i / C_i`.
+    pub first_flows: Option<HeatRate>,
     /// Whether the scene has a laser (else the laser-energy accumulators are skipped).
     pub laser_on: bool,
     /// The periodic axes, for the contact conductances of a step that needs more substeps.
@@ -735,6 +771,10 @@ pub struct StepInfo<'a> {
 /// that needs more than one substep (or has no first pass) stores the contact conductances per
 /// pair slot, computed anew from the positions, for its further flow passes: most steps of a bed
 /// take one substep, and the force pass then keeps no per-slot conductance at all.
+///
+/// Returns the first substep's `max G_i / C_i` [1/s] where it was taken, `None` where the
+/// bound sufficed ([`HeatRate::AtMost`]): the heat sums then still hold the first substep's
+/// and give it ([`max_heat_rate_of`]).
 pub fn advance(
     model: &ThermalModel,
     walls: &[Wall],
@@ -742,7 +782,7 @@ pub fn advance(
     list: &NeighborList,
     state: &mut ThermalState,
     step: StepInfo,
-) {
+) -> Option<f64> {
     let _pass = crate::team::PassName::enter("temperature update");
     let StepInfo {
         dt,
@@ -751,15 +791,20 @@ pub fn advance(
         periodic,
     } = step;
     let n = particles.len();
+    // The share of dt over the smallest time constant C_i/G_i that one substep may take.
+    let share = |rate: f64| dt * rate / model.substep_fraction;
     let worst = match first_flows {
-        Some(worst) => worst,
+        Some(HeatRate::Exact(worst)) => Some(worst),
+        // (A NaN bound fails the test and takes the exact rate.)
+        Some(HeatRate::AtMost(bound)) if share(bound) <= 1.0 => None,
+        Some(HeatRate::AtMost(_)) => Some(max_heat_rate_of(state)),
         None => {
             update_conductances(model, periodic, particles, list, &mut state.conductance);
-            heat_flows(model, walls, particles, list, state)
+            Some(heat_flows(model, walls, particles, list, state))
         }
     };
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-    let substeps = ((dt * worst / model.substep_fraction).ceil() as u32).max(1);
+    let substeps = worst.map_or(1, |worst| (share(worst).ceil() as u32).max(1));
     if substeps > 1 && first_flows.is_some() {
         update_conductances(model, periodic, particles, list, &mut state.conductance);
     }
@@ -852,6 +897,19 @@ pub fn advance(
     }
     state.substeps = substeps;
     state.max_substeps = state.max_substeps.max(substeps);
+    worst
+}
+
+/// The largest `G_i / C_i` [1/s] (M.49) of the heat sums as they stand, on the thread team for
+/// a large state (exact in any order, as [`crate::team::largest`] says).
+#[must_use]
+pub fn max_heat_rate_of(state: &ThermalState) -> f64 {
+    let parallel = crate::worth_parallel(state.heat_sums.len());
+    crate::team::largest(
+        parallel,
+        (&state.heat_sums, &state.heat_capacity),
+        heat_rate,
+    )
 }
 
 /// Net heat flow into every particle at the current temperatures \[W\] and its total conductance

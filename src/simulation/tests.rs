@@ -1,0 +1,143 @@
+//! Tests of the step that read the simulation's own state (its force summary, the heat sums).
+
+use super::*;
+use crate::thermal::{HeatRate, StepInfo};
+
+/// The column scene's lattice packed into a cube of 1000 spheres of r = 1 mm, each pressed a
+/// little into its six neighbours (spacing 1.99 mm), conducting heat through its contacts only
+/// (no gas, no surroundings, adiabatic walls), from 300 K at the floor to 1300 K at the top:
+/// tests/thermal.rs's bed. Every third sphere's radius is scaled by `scale` (its mass by
+/// `scale³`, its heat capacity with it), so that a scale other than 1 makes a bed of two sizes.
+fn packed_bed(scale: f64) -> Simulation {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/column.toml"))
+        .expect("scenes/column.toml")
+        .replace(
+            "max_corner_m = [0.0220, 0.0220, 0.0440]",
+            "max_corner_m = [0.0200, 0.0200, 0.0200]",
+        )
+        .replace("spacing_m = 2.2e-3", "spacing_m = 1.99e-3")
+        .replace("jitter_m = 9e-5", "jitter_m = 0.0")
+        .replace(
+            "poisson_ratio = 0.3",
+            "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 800\nthermal_conductivity_w_m_k = 400\n\
+             melting_point_k = 1900",
+        )
+        .replace(
+            "[output]",
+            "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n[output]",
+        );
+    let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
+    let (model, mut particles) = Model::build(&scene);
+    for k in (0..particles.len()).step_by(3) {
+        particles.radius[k] *= scale;
+        particles.mass[k] *= scale.powi(3);
+    }
+    let mut sim = Simulation::new(model, particles);
+    assert_eq!(sim.particles.len(), 1000);
+    for k in 0..sim.particles.len() {
+        let z = sim.particles.position[k].z;
+        let thermal = sim.thermal.as_mut().expect("[thermal]");
+        thermal.set_temperature(k, 300.0 + 5e4 * z);
+    }
+    sim
+}
+
+/// Without laser or boundary exchange the force pass takes no `G_i / C_i`: the pair pass's
+/// largest G_i, over the smallest heat capacity, bounds the largest. The largest G_i any of the
+/// pair pass's additions left is the largest of the finished sums to the bit (each G_i only
+/// grows as contacts add to it), and for spheres of one size and material the bound is the
+/// largest rate itself, to the bit (`fl(G/C)` grows with G for one C); with two sizes it is
+/// above it.
+#[test]
+fn the_pair_pass_bounds_the_largest_heat_rate_by_the_largest_conductance() {
+    for scale in [1.0, 1.05] {
+        let mut sim = packed_bed(scale);
+        for _ in 0..3 {
+            sim.step();
+        }
+        let summary = sim.force_summary;
+        let state = sim.thermal.as_ref().expect("[thermal]");
+        // The bound sufficed (dt G/C is about 1e-4 here), so no step took the rate itself.
+        assert_eq!(summary.max_heat_rate, None);
+        assert_eq!(state.substeps, 1);
+        let largest = state
+            .heat_sums
+            .iter()
+            .map(|s| s.conductance)
+            .fold(0.0, f64::max);
+        assert!(largest > 0.0);
+        assert_eq!(summary.max_conductance.to_bits(), largest.to_bits());
+        let smallest = state
+            .heat_capacity
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!(state.min_heat_capacity.to_bits(), smallest.to_bits());
+        let HeatRate::AtMost(bound) = HeatRate::at_most(largest, smallest) else {
+            unreachable!("`at_most` makes a bound")
+        };
+        let exact = thermal::max_heat_rate_of(state);
+        assert!(exact > 0.0);
+        if scale == 1.0 {
+            assert_eq!(bound.to_bits(), exact.to_bits(), "one size");
+        } else {
+            // The large spheres hold the largest G_i, the small ones the smallest C_i: the bound
+            // exceeds the rate by about the capacities' ratio, far beyond rounding.
+            assert!(bound > 1.01 * exact, "{bound:e} against {exact:e}");
+        }
+    }
+}
+
+/// The temperature update takes the substep count of the largest `G_i / C_i` whatever the force
+/// pass gives it: the rate itself, a bound that asks for one substep (the rate would ask for
+/// one too), or a bound that asks for more or is NaN (the update then takes the rate in a pass
+/// of its own). The state after each is the same to the bit as after the rate itself, on a bed
+/// of two sizes, with time steps that make the rate take half a substep's allowance (one
+/// substep) and two and a half (three substeps).
+#[test]
+fn the_temperature_update_takes_the_substep_count_of_the_largest_rate_from_any_bound() {
+    let mut sim = packed_bed(1.05);
+    for _ in 0..3 {
+        sim.step();
+    }
+    let model = sim.model.thermal.as_ref().expect("[thermal]");
+    let state = sim.thermal.as_ref().expect("[thermal]");
+    let exact = thermal::max_heat_rate_of(state);
+    let fraction = model.substep_fraction;
+    for (share, substeps) in [(0.5, 1), (2.5, 3)] {
+        let dt = share * fraction / exact;
+        let advance = |first_flows| {
+            let mut after = state.clone();
+            let taken = thermal::advance(
+                model,
+                &sim.model.walls,
+                &sim.particles,
+                &sim.neighbors,
+                &mut after,
+                StepInfo {
+                    dt,
+                    first_flows: Some(first_flows),
+                    laser_on: false,
+                    periodic: sim.model.periodic.as_ref(),
+                },
+            );
+            (after, taken)
+        };
+        let (reference, taken) = advance(HeatRate::Exact(exact));
+        assert_eq!(taken, Some(exact));
+        assert_eq!(reference.substeps, substeps);
+        assert!(reference.enthalpy != state.enthalpy, "heat flowed");
+        for bound in [1.5 * exact, 4.0 * exact, f64::NAN] {
+            let (after, taken) = advance(HeatRate::AtMost(bound));
+            // Only a bound that asks for one substep spares the pass that takes the rate.
+            let sufficed = dt * bound / fraction <= 1.0;
+            assert_eq!(sufficed, share == 0.5 && bound == 1.5 * exact);
+            assert_eq!(taken, (!sufficed).then_some(exact), "bound {bound:e}");
+            assert!(
+                after == reference,
+                "bound {bound:e}, share {share}: {} substeps against {substeps}",
+                after.substeps
+            );
+        }
+    }
+}
