@@ -316,29 +316,11 @@ fn stiff_pair(stiffness: f64) {
     }
 }
 
-/// The column scene with its lattice's upper corner at `max_corner` [m], run for `duration`
-/// [s], with heat conducted through the contacts only (no walls, gas or surroundings exchange
-/// any). A copper-like conductivity makes the contact time constants (~0.1 s) short enough for
-/// heat to spread visibly within half a second.
-fn conducting_column(max_corner: &str, duration: &str) -> String {
-    common::scene_text("column.toml")
-        .replace(
-            "max_corner_m = [0.0220, 0.0220, 0.0440]",
-            &format!("max_corner_m = {max_corner}"),
-        )
-        .replace("duration_s = 0.1", &format!("duration_s = {duration}"))
-        .replace(
-            "poisson_ratio = 0.3",
-            "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 800\nthermal_conductivity_w_m_k = 400\nmelting_point_k = 1900",
-        )
-        .replace("[output]", "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n[output]")
-}
-
 #[test]
 fn an_isolated_bed_conserves_its_heat() {
     // 1000 spheres settled in an adiabatic box with a vertical temperature gradient: conduction
     // only moves heat around. 1e5 steps; each step adds round-off of ~1e-16 of the total.
-    let text = conducting_column("[0.0220, 0.0220, 0.0220]", "0.5");
+    let text = common::conducting::conducting_column("[0.0220, 0.0220, 0.0220]", "0.5");
     let mut sim = common::simulation(&text);
     assert_eq!(sim.particles.len(), 1000);
     for k in 0..1000 {
@@ -387,9 +369,7 @@ fn an_isolated_bed_conserves_its_heat() {
 /// particle and adds its exchange to the sums before the chunk's largest is taken.
 #[test]
 fn the_largest_heat_rate_of_a_step_is_that_of_every_particle() {
-    let packed = conducting_column("[0.0200, 0.0200, 0.0200]", "1e-4")
-        .replace("spacing_m = 2.2e-3", "spacing_m = 1.99e-3")
-        .replace("jitter_m = 9e-5", "jitter_m = 0.0");
+    let packed = common::conducting::packed_cube("1e-4");
     let convected = packed.replace(
         "[output]",
         "[thermal.convection]\nheat_transfer_coefficient_w_m2_k = 10\ngas_temperature_k = 300\n[output]",

@@ -3,29 +3,15 @@
 use super::*;
 use crate::thermal::{HeatRate, StepInfo};
 
-/// The column scene's lattice packed into a cube of 1000 spheres of r = 1 mm, each pressed a
-/// little into its six neighbours (spacing 1.99 mm), conducting heat through its contacts only
-/// (no gas, no surroundings, adiabatic walls), from 300 K at the floor to 1300 K at the top:
-/// tests/thermal.rs's bed. Every third sphere's radius is scaled by `scale` (its mass by
-/// `scale³`, its heat capacity with it), so that a scale other than 1 makes a bed of two sizes.
+#[path = "../../tests/common/conducting.rs"]
+mod conducting;
+
+/// The conducting column's packed cube (`tests/common/conducting.rs`, which tests/thermal.rs
+/// runs too), from 300 K at the floor to 1300 K at the top. Every third sphere's radius is
+/// scaled by `scale` (its mass by `scale³`, its heat capacity with it), so that a scale other
+/// than 1 makes a bed of two sizes.
 fn packed_bed(scale: f64) -> Simulation {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/column.toml"))
-        .expect("scenes/column.toml")
-        .replace(
-            "max_corner_m = [0.0220, 0.0220, 0.0440]",
-            "max_corner_m = [0.0200, 0.0200, 0.0200]",
-        )
-        .replace("spacing_m = 2.2e-3", "spacing_m = 1.99e-3")
-        .replace("jitter_m = 9e-5", "jitter_m = 0.0")
-        .replace(
-            "poisson_ratio = 0.3",
-            "poisson_ratio = 0.3\nspecific_heat_j_kg_k = 800\nthermal_conductivity_w_m_k = 400\n\
-             melting_point_k = 1900",
-        )
-        .replace(
-            "[output]",
-            "[thermal]\ninitial_temperature_k = 300\nconduction = \"batchelor_obrien\"\n[output]",
-        );
+    let text = conducting::packed_cube("1e-4");
     let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
     let (model, mut particles) = Model::build(&scene);
     for k in (0..particles.len()).step_by(3) {

@@ -2,6 +2,8 @@
 //! same path as `am-sim scene.toml`, so the tests also exercise the scene layer.
 #![allow(dead_code)]
 
+pub mod conducting;
+
 use am_sim::contact::BondParams;
 use am_sim::model::Model;
 use am_sim::scene::Scene;
