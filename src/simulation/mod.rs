@@ -238,8 +238,8 @@ impl Simulation {
         if let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) {
             // Measured in the run's own scratch arrays, not a copy of the whole thermal state
             // (about 100 B per particle at once): every step refills the heat flows before it
-            // reads them, and only a step of several substeps keeps per-slot conductances,
-            // computing them anew.
+            // reads them. The measurement keeps no per-slot conductances (8 B a pair slot,
+            // which would set a heated bed's peak memory): it computes each as it meets it.
             self.force_summary.max_heat_rate = Some(thermal::max_stiffness(
                 model,
                 &self.model.walls,
@@ -248,7 +248,6 @@ impl Simulation {
                 &self.neighbors,
                 state,
             ));
-            state.conductance = Vec::new();
         }
         self.mark_start();
     }

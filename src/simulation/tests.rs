@@ -127,3 +127,53 @@ fn the_temperature_update_takes_the_substep_count_of_the_largest_rate_from_any_b
         }
     }
 }
+
+/// The largest `G_i / C_i` measured once (`thermal::max_stiffness`, as the run's start and the
+/// diagnostics take it) computes each contact's conductance as it meets the pair and keeps no
+/// per-slot array, whose 8 B a pair slot would set a heated bed's peak memory; it gives the
+/// same rate and heat sums to the bit as the flow pass of a step of several substeps, which
+/// reads them stored.
+#[test]
+fn the_largest_heat_rate_measured_once_keeps_no_conductances_and_matches_the_stored_ones() {
+    let mut sim = packed_bed(1.05);
+    for _ in 0..3 {
+        sim.step();
+    }
+    let model = sim.model.thermal.as_ref().expect("[thermal]");
+    let periodic = sim.model.periodic.as_ref();
+    let state = sim.thermal.as_ref().expect("[thermal]");
+    assert_eq!(state.conductance.capacity(), 0, "the run kept conductances");
+    let mut measured = state.clone();
+    let rate = thermal::max_stiffness(
+        model,
+        &sim.model.walls,
+        periodic,
+        &sim.particles,
+        &sim.neighbors,
+        &mut measured,
+    );
+    assert_eq!(measured.conductance.capacity(), 0);
+    // A step without the force pass's flows stores the conductances and runs the flow pass on
+    // them.
+    let mut stored = state.clone();
+    let taken = thermal::advance(
+        model,
+        &sim.model.walls,
+        &sim.particles,
+        &sim.neighbors,
+        &mut stored,
+        StepInfo {
+            dt: sim.model.dt,
+            first_flows: None,
+            laser_on: false,
+            periodic,
+        },
+    );
+    assert!(!stored.conductance.is_empty());
+    assert!(rate > 0.0);
+    assert_eq!(taken.map(f64::to_bits), Some(rate.to_bits()));
+    assert!(
+        measured.heat_sums == stored.heat_sums,
+        "the heat sums differ"
+    );
+}

@@ -605,24 +605,49 @@ pub fn update_conductances(
     conductance: &mut Vec<f64>,
 ) {
     conductance.clear();
-    conductance.extend(list.pairs().map(|(_, a, b)| {
-        // The minimum image only where the owner needs it, as in the pair pass.
-        let image = periodic.filter(|_| list.needs_minimum_image(a));
-        let Some((_, overlap)) = crate::forces::touching_pair_geometry(image, particles, a, b)
-        else {
-            return 0.0;
-        };
-        let radii = [particles.radius[a], particles.radius[b]];
-        let effective_radius = crate::contact::hertz::effective_radius(radii[0], radii[1]);
-        let contact = conduction::contact_radius(effective_radius, overlap);
-        let materials = [particles.material[a], particles.material[b]];
-        pair_conductance(model, materials, radii, overlap, contact)
-    }));
+    conductance.extend(
+        list.pairs()
+            .map(|(_, a, b)| slot_conductance(model, periodic, particles, list, a, b)),
+    );
+}
+
+/// The contact conductance H [W/K] of the listed pair of owner `a` and partner `b` at the
+/// current positions (M.41, M.42, M.79; 0 where they do not touch).
+#[inline(always)]
+fn slot_conductance(
+    model: &ThermalModel,
+    periodic: Option<&crate::periodic::Periodic>,
+    particles: &Particles,
+    list: &NeighborList,
+    a: usize,
+    b: usize,
+) -> f64 {
+    // The minimum image only where the owner needs it, as in the pair pass.
+    let image = periodic.filter(|_| list.needs_minimum_image(a));
+    let Some((_, overlap)) = crate::forces::touching_pair_geometry(image, particles, a, b) else {
+        return 0.0;
+    };
+    let radii = [particles.radius[a], particles.radius[b]];
+    let effective_radius = crate::contact::hertz::effective_radius(radii[0], radii[1]);
+    let contact = conduction::contact_radius(effective_radius, overlap);
+    let materials = [particles.material[a], particles.material[b]];
+    pair_conductance(model, materials, radii, overlap, contact)
+}
+
+/// Where a pass of heat flows finds each pair slot's contact conductance H [W/K].
+#[derive(Clone, Copy)]
+enum SlotConductances<'a> {
+    /// In the state's per-slot array ([`update_conductances`]): a step of several substeps
+    /// computes them once and reads them in each.
+    Stored,
+    /// From the positions, as the pass meets each pair (with the periodic axes): a measurement
+    /// made once keeps no array of 8 B a pair slot, which would set the run's peak memory.
+    FromPositions(Option<&'a crate::periodic::Periodic>),
 }
 
 /// Largest `G_i / C_i` over the particles [1/s] (M.49) for the current positions and
-/// temperatures: its inverse is the smallest thermal time constant. Fills `state`'s scratch
-/// arrays (conductances, flows).
+/// temperatures: its inverse is the smallest thermal time constant. Fills `state`'s heat flows;
+/// keeps no per-slot conductances (it computes each as it meets the pair).
 #[must_use]
 pub fn max_stiffness(
     model: &ThermalModel,
@@ -632,8 +657,14 @@ pub fn max_stiffness(
     list: &NeighborList,
     state: &mut ThermalState,
 ) -> f64 {
-    update_conductances(model, periodic, particles, list, &mut state.conductance);
-    heat_flows(model, walls, particles, list, state)
+    heat_flows(
+        model,
+        walls,
+        particles,
+        list,
+        state,
+        SlotConductances::FromPositions(periodic),
+    )
 }
 
 /// The smallest of `values` (infinite for none).
@@ -882,7 +913,14 @@ pub fn advance(
         Some(HeatRate::AtMost(_)) => Some(max_heat_rate_of(state)),
         None => {
             update_conductances(model, periodic, particles, list, &mut state.conductance);
-            Some(heat_flows(model, walls, particles, list, state))
+            Some(heat_flows(
+                model,
+                walls,
+                particles,
+                list,
+                state,
+                SlotConductances::Stored,
+            ))
         }
     };
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
@@ -893,7 +931,14 @@ pub fn advance(
     let dt_sub = dt / f64::from(substeps);
     for substep in 0..substeps {
         if substep > 0 {
-            heat_flows(model, walls, particles, list, state);
+            heat_flows(
+                model,
+                walls,
+                particles,
+                list,
+                state,
+                SlotConductances::Stored,
+            );
         }
         let ThermalState {
             enthalpy,
@@ -1012,48 +1057,43 @@ fn heat_flows(
     particles: &Particles,
     list: &NeighborList,
     state: &mut ThermalState,
+    conductances: SlotConductances,
 ) -> f64 {
-    use crate::scatter::{PerParticle, Scatter};
+    let _pass = crate::team::PassName::enter("heat flows");
+    let parallel = crate::worth_parallel(state.temperature.len());
+    state.heat_sums.fill(HeatSums::default());
+    // One loop for each source, so that no pair tests which it is.
+    match conductances {
+        SlotConductances::Stored => {
+            let (stored, temperature) = (&state.conductance, &state.temperature);
+            add_pair_flows(
+                list,
+                parallel,
+                temperature,
+                &mut state.heat_sums,
+                |slot, _, _| stored[slot],
+            );
+        }
+        SlotConductances::FromPositions(periodic) => {
+            let temperature = &state.temperature;
+            add_pair_flows(
+                list,
+                parallel,
+                temperature,
+                &mut state.heat_sums,
+                |_, a, b| slot_conductance(model, periodic, particles, list, a, b),
+            );
+        }
+    }
     let ThermalState {
         temperature,
-        conductance,
         laser_power,
         heat_sums,
         boundary_flow,
         heat_capacity,
         ..
     } = state;
-    let _pass = crate::team::PassName::enter("heat flows");
     let temperature = &*temperature;
-    let parallel = crate::worth_parallel(temperature.len());
-    heat_sums.fill(HeatSums::default());
-    {
-        let sums: Scatter<'_, HeatSums, PerParticle> = Scatter::new(heat_sums);
-        list.for_each_slab(
-            parallel,
-            (),
-            |(), visit| {
-                // Opened for the visit: its writes take no bounds check (`scatter`).
-                let sums = sums.open(visit);
-                for window in visit.windows() {
-                    let owner = window.owner();
-                    let t = temperature[owner.index()];
-                    let (mut flow_a, mut sum_a) = (0.0, 0.0);
-                    for (p, partner) in window.pairs() {
-                        let h = conductance[p.index()];
-                        if h > 0.0 {
-                            let q = h * (temperature[partner.index()] - t);
-                            flow_a += q;
-                            sum_a += h;
-                            sums.update(partner, |s| s.add(-q, h));
-                        }
-                    }
-                    sums.update(owner, |s| s.add(flow_a, sum_a));
-                }
-            },
-            |(), ()| (),
-        );
-    }
     let finish = |(k, (s, boundary)): (usize, (&mut HeatSums, &mut f64))| -> f64 {
         let (outside, outside_conductance) =
             boundary_heat(model, walls, particles, k, temperature[k]);
@@ -1069,6 +1109,44 @@ fn heat_flows(
         let out = heat_sums.iter_mut().zip(boundary_flow.iter_mut());
         out.enumerate().map(finish).fold(0.0, f64::max)
     }
+}
+
+/// Adds every listed pair's heat flow `H (T_b − T_a)` and conductance H to both particles'
+/// sums (M.40, M.49), in a coloured pass over the slabs in the list's fixed order, H of a slot
+/// from `conductance(slot, owner, partner)`.
+fn add_pair_flows(
+    list: &NeighborList,
+    parallel: bool,
+    temperature: &[f64],
+    heat_sums: &mut [HeatSums],
+    conductance: impl Fn(usize, usize, usize) -> f64 + Sync,
+) {
+    use crate::scatter::{PerParticle, Scatter};
+    let sums: Scatter<'_, HeatSums, PerParticle> = Scatter::new(heat_sums);
+    list.for_each_slab(
+        parallel,
+        (),
+        |(), visit| {
+            // Opened for the visit: its writes take no bounds check (`scatter`).
+            let sums = sums.open(visit);
+            for window in visit.windows() {
+                let owner = window.owner();
+                let t = temperature[owner.index()];
+                let (mut flow_a, mut sum_a) = (0.0, 0.0);
+                for (p, partner) in window.pairs() {
+                    let h = conductance(p.index(), owner.index(), partner.index());
+                    if h > 0.0 {
+                        let q = h * (temperature[partner.index()] - t);
+                        flow_a += q;
+                        sum_a += h;
+                        sums.update(partner, |s| s.add(-q, h));
+                    }
+                }
+                sums.update(owner, |s| s.add(flow_a, sum_a));
+            }
+        },
+        |(), ()| (),
+    );
 }
 
 #[cfg(test)]
