@@ -9,7 +9,8 @@ mod conducting;
 /// The conducting column's packed cube (`tests/common/conducting.rs`, which tests/thermal.rs
 /// runs too), from 300 K at the floor to 1300 K at the top. Every third sphere's radius is
 /// scaled by `scale` (its mass by `scale³`, its heat capacity with it), so that a scale other
-/// than 1 makes a bed of two sizes.
+/// than 1 makes a bed of two sizes. Returned after three steps, so that its contacts conduct and
+/// the step's own heat sums and force summary are there to read.
 fn packed_bed(scale: f64) -> Simulation {
     let text = conducting::packed_cube("1e-4");
     let scene = crate::scene::Scene::from_toml(&text).expect("the test's scene");
@@ -25,6 +26,9 @@ fn packed_bed(scale: f64) -> Simulation {
         let thermal = sim.thermal.as_mut().expect("[thermal]");
         thermal.set_temperature(k, 300.0 + 5e4 * z);
     }
+    for _ in 0..3 {
+        sim.step();
+    }
     sim
 }
 
@@ -37,10 +41,7 @@ fn packed_bed(scale: f64) -> Simulation {
 #[test]
 fn the_pair_pass_bounds_the_largest_heat_rate_by_the_largest_conductance() {
     for scale in [1.0, 1.05] {
-        let mut sim = packed_bed(scale);
-        for _ in 0..3 {
-            sim.step();
-        }
+        let sim = packed_bed(scale);
         let summary = sim.force_summary;
         let state = sim.thermal.as_ref().expect("[thermal]");
         // The bound sufficed (dt G/C is about 1e-4 here), so no step took the rate itself.
@@ -82,10 +83,7 @@ fn the_pair_pass_bounds_the_largest_heat_rate_by_the_largest_conductance() {
 /// substep) and two and a half (three substeps).
 #[test]
 fn the_temperature_update_takes_the_substep_count_of_the_largest_rate_from_any_bound() {
-    let mut sim = packed_bed(1.05);
-    for _ in 0..3 {
-        sim.step();
-    }
+    let sim = packed_bed(1.05);
     let model = sim.model.thermal.as_ref().expect("[thermal]");
     let state = sim.thermal.as_ref().expect("[thermal]");
     let exact = thermal::max_heat_rate_of(state);
@@ -135,10 +133,7 @@ fn the_temperature_update_takes_the_substep_count_of_the_largest_rate_from_any_b
 /// reads them stored.
 #[test]
 fn the_largest_heat_rate_measured_once_keeps_no_conductances_and_matches_the_stored_ones() {
-    let mut sim = packed_bed(1.05);
-    for _ in 0..3 {
-        sim.step();
-    }
+    let sim = packed_bed(1.05);
     let model = sim.model.thermal.as_ref().expect("[thermal]");
     let periodic = sim.model.periodic.as_ref();
     let state = sim.thermal.as_ref().expect("[thermal]");
