@@ -127,12 +127,14 @@ fn the_temperature_update_takes_the_substep_count_of_the_largest_rate_from_any_b
 }
 
 /// The largest `G_i / C_i` measured once (`thermal::max_stiffness`, as the run's start and the
-/// diagnostics take it) computes each contact's conductance as it meets the pair and keeps no
-/// per-slot array, whose 8 B a pair slot would set a heated bed's peak memory; it gives the
-/// same rate and heat sums to the bit as the flow pass of a step of several substeps, which
-/// reads them stored.
+/// diagnostics take it), and a step of one substep without the force pass's flows, compute each
+/// contact's conductance as they meet the pair and keep no per-slot array, whose 8 B a pair slot
+/// would set a heated bed's peak memory. A step of three substeps stores the conductances for
+/// its second and third flow passes; its temperatures and heat sums are the same to the bit as
+/// those of three steps of a third of its length, each of one substep, which compute every
+/// conductance from the positions.
 #[test]
-fn the_largest_heat_rate_measured_once_keeps_no_conductances_and_matches_the_stored_ones() {
+fn flow_passes_without_stored_conductances_match_the_stored_ones_to_the_bit() {
     let sim = packed_bed(1.05);
     let model = sim.model.thermal.as_ref().expect("[thermal]");
     let periodic = sim.model.periodic.as_ref();
@@ -147,28 +149,48 @@ fn the_largest_heat_rate_measured_once_keeps_no_conductances_and_matches_the_sto
         &sim.neighbors,
         &mut measured,
     );
-    assert_eq!(measured.conductance.capacity(), 0);
-    // A step without the force pass's flows stores the conductances and runs the flow pass on
-    // them.
-    let mut stored = state.clone();
-    let taken = thermal::advance(
-        model,
-        &sim.model.walls,
-        &sim.particles,
-        &sim.neighbors,
-        &mut stored,
-        StepInfo {
-            dt: sim.model.dt,
-            first_flows: None,
-            laser_on: false,
-            periodic,
-        },
-    );
-    assert!(!stored.conductance.is_empty());
     assert!(rate > 0.0);
-    assert_eq!(taken.map(f64::to_bits), Some(rate.to_bits()));
+    assert_eq!(measured.conductance.capacity(), 0);
+    let advance = |state: &mut ThermalState, dt: f64| {
+        thermal::advance(
+            model,
+            &sim.model.walls,
+            &sim.particles,
+            &sim.neighbors,
+            state,
+            StepInfo {
+                dt,
+                first_flows: None,
+                laser_on: false,
+                periodic,
+            },
+        )
+    };
+    // A step whose largest rate takes 2.5 substeps' allowance takes three; a third of it takes
+    // one (the rate moves by far less than the 17 % margin over the three thirds: the positions
+    // stay, only the radiation's conductance follows the temperatures).
+    let dt = 2.5 * model.substep_fraction / rate;
+    let mut stored = state.clone();
+    assert_eq!(advance(&mut stored, dt), Some(rate));
+    assert_eq!(stored.substeps, 3);
+    assert!(!stored.conductance.is_empty());
+    let mut computed = state.clone();
+    for third in 0..3 {
+        let taken = advance(&mut computed, dt / 3.0).expect("no bound given");
+        if third == 0 {
+            assert_eq!(taken.to_bits(), rate.to_bits());
+        }
+        assert_eq!(computed.substeps, 1);
+        assert_eq!(computed.conductance.capacity(), 0, "third {third}");
+    }
+    assert!(computed.enthalpy != state.enthalpy, "heat flowed");
     assert!(
-        measured.heat_sums == stored.heat_sums,
+        computed.enthalpy == stored.enthalpy,
+        "the enthalpies differ"
+    );
+    assert!(computed.temperature == stored.temperature);
+    assert!(
+        computed.heat_sums == stored.heat_sums,
         "the heat sums differ"
     );
 }

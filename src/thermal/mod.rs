@@ -880,10 +880,11 @@ pub struct StepInfo<'a> {
 ///
 /// Per substep: one pass over the particles computes every heat flow (and, in the first, every
 /// total conductance G_i, which fixes the substep count), a second streams the enthalpy update.
-/// The first pass may already have been made by the force gather (see [`StepInfo`]). Only a step
-/// that needs more than one substep (or has no first pass) stores the contact conductances per
-/// pair slot, computed anew from the positions, for its further flow passes: most steps of a bed
-/// take one substep, and the force pass then keeps no per-slot conductance at all.
+/// The first pass may already have been made by the force gather (see [`StepInfo`]); else it
+/// computes each contact conductance as it meets the pair ([`max_stiffness`]). Only a step that
+/// needs more than one substep stores the contact conductances per pair slot, computed anew from
+/// the positions, for its further flow passes: most steps of a bed take one substep, and keep no
+/// per-slot conductance at all.
 ///
 /// Returns the first substep's `max G_i / C_i` [1/s] where it was taken, `None` where the
 /// bound sufficed ([`HeatRate::AtMost`]): the heat sums then still hold the first substep's
@@ -911,21 +912,13 @@ pub fn advance(
         // (A NaN bound fails the test and takes the exact rate.)
         Some(HeatRate::AtMost(bound)) if share(bound) <= 1.0 => None,
         Some(HeatRate::AtMost(_)) => Some(max_heat_rate_of(state)),
-        None => {
-            update_conductances(model, periodic, particles, list, &mut state.conductance);
-            Some(heat_flows(
-                model,
-                walls,
-                particles,
-                list,
-                state,
-                SlotConductances::Stored,
-            ))
-        }
+        None => Some(max_stiffness(
+            model, walls, periodic, particles, list, state,
+        )),
     };
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let substeps = worst.map_or(1, |worst| (share(worst).ceil() as u32).max(1));
-    if substeps > 1 && first_flows.is_some() {
+    if substeps > 1 {
         update_conductances(model, periodic, particles, list, &mut state.conductance);
     }
     let dt_sub = dt / f64::from(substeps);
