@@ -184,15 +184,12 @@ fn advance_in_calls_is_bitwise_the_same_as_step_by_step() {
             }
             if let Some(t) = &s.thermal {
                 let evaporated = t.evaporation.iter().flat_map(|e| &e.evaporated);
-                for column in [
-                    &t.enthalpy,
-                    &t.temperature,
-                    &t.laser_energy,
-                    &t.boundary_energy,
-                ] {
+                let laser = t.laser.iter().flat_map(|l| &l.energy);
+                let boundary = t.boundary.iter().flat_map(|b| &b.energy);
+                for column in [&t.enthalpy, &t.temperature] {
                     bits.extend(column.iter().map(|e| e.to_bits()));
                 }
-                bits.extend(evaporated.map(|e| e.to_bits()));
+                bits.extend(laser.chain(boundary).chain(evaporated).map(|e| e.to_bits()));
                 bits.extend(t.melted.iter().map(|&m| u64::from(m)));
             }
             bits

@@ -46,6 +46,12 @@ spot_radius_m = {spot:e}
     ))
 }
 
+/// The power each particle absorbed in the last step \[W\].
+fn laser_power(sim: &Simulation) -> &[f64] {
+    let thermal = sim.thermal.as_ref().expect("[thermal]");
+    &thermal.laser.as_ref().expect("[laser]").power
+}
+
 /// Fraction of a Gaussian beam (1/e² radius w, axis at the origin) falling on a disk of radius r
 /// centred at `(x, y)`: a fine polar midpoint rule, independent of am-sim's ray casting.
 fn disk_fraction(x: f64, y: f64, r: f64, w: f64) -> f64 {
@@ -88,7 +94,7 @@ fn a_flat_layer_absorbs_alpha_p_t_times_the_intercepted_fraction() {
             .sum();
         for _ in 0..steps {
             sim.step();
-            let absorbed: f64 = sim.thermal.as_ref().unwrap().laser_power.iter().sum();
+            let absorbed: f64 = laser_power(&sim).iter().sum();
             assert!(
                 absorbed <= ALPHA * POWER * (1.0 + 1e-12),
                 "absorbed {absorbed} W > α P"
@@ -120,9 +126,8 @@ fn a_particle_under_another_gets_no_direct_laser_heat() {
     );
     sim.step();
     // Particles are stored in spatial order: look them up by id (scene order).
-    let power_of = |sim: &Simulation, id: u64| {
-        sim.thermal.as_ref().unwrap().laser_power[sim.particles.index_of(id).unwrap()]
-    };
+    let power_of =
+        |sim: &Simulation, id: u64| laser_power(sim)[sim.particles.index_of(id).unwrap()];
     assert!(power_of(&sim, 0) > 0.0);
     assert_eq!(power_of(&sim, 1), 0.0, "the lower sphere is fully shadowed");
     // C half under A: it receives something, but less than when alone.
@@ -177,7 +182,7 @@ fn a_moving_beam_heats_particles_along_its_path_at_the_right_times() {
     for _ in 0..sim.model.steps {
         let t_mid = sim.time + 0.5 * dt;
         sim.step();
-        for (k, p) in sim.thermal.as_ref().unwrap().laser_power.iter().enumerate() {
+        for (k, p) in laser_power(&sim).iter().enumerate() {
             if *p > peak[k].1 {
                 peak[k] = (t_mid, *p);
             }

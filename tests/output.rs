@@ -84,6 +84,16 @@ fn fingerprint(path: &Path) -> (Vec<u64>, Vec<(u64, u64)>, u64) {
     (bits, bonds, saved.state.step)
 }
 
+/// Writes the scenes of a restart test into `dir`: `full.toml` (writing `full.h5`),
+/// `half.toml` (`half.h5`, over half the time) and `continue.toml`, the full run writing on
+/// into `half.h5`.
+fn write_halves(dir: &Path, full: &str, half: &str) {
+    std::fs::write(dir.join("full.toml"), full).unwrap();
+    std::fs::write(dir.join("half.toml"), half).unwrap();
+    let continued = full.replace("full.h5", "half.h5");
+    std::fs::write(dir.join("continue.toml"), continued).unwrap();
+}
+
 #[test]
 fn a_run_of_2t_equals_t_plus_a_restart_of_t_bit_for_bit() {
     // The laser switches on at 0.2 ms; the restart at 0.5 ms falls in the middle of the track,
@@ -91,13 +101,7 @@ fn a_run_of_2t_equals_t_plus_a_restart_of_t_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
     let full = common::short_track(1e-3, 500).replace("laser_track.h5", "full.h5");
     let half = common::short_track(5e-4, 500).replace("laser_track.h5", "half.h5");
-    std::fs::write(dir.path().join("full.toml"), &full).unwrap();
-    std::fs::write(dir.path().join("half.toml"), &half).unwrap();
-    std::fs::write(
-        dir.path().join("continue.toml"),
-        full.replace("full.h5", "half.h5"),
-    )
-    .unwrap();
+    write_halves(dir.path(), &full, &half);
     run_ok(dir.path(), &["full.toml"]);
     run_ok(dir.path(), &["half.toml"]);
     let resumed = run_ok(dir.path(), &["continue.toml", "--restart", "half.h5"]);
@@ -146,13 +150,7 @@ fn a_run_with_friction_restarts_bit_for_bit() {
     let half = column
         .replace("duration_s = 0.1", "duration_s = 0.008")
         .replace("column.h5", "half.h5");
-    std::fs::write(dir.path().join("full.toml"), &full).unwrap();
-    std::fs::write(dir.path().join("half.toml"), &half).unwrap();
-    std::fs::write(
-        dir.path().join("continue.toml"),
-        full.replace("full.h5", "half.h5"),
-    )
-    .unwrap();
+    write_halves(dir.path(), &full, &half);
     run_ok(dir.path(), &["full.toml"]);
     run_ok(dir.path(), &["half.toml"]);
     let halfway = read_last_frame(&dir.path().join("half.h5")).unwrap();
@@ -195,6 +193,50 @@ fn a_run_with_friction_restarts_bit_for_bit() {
         ))
         .unwrap();
     assert_eq!(last.shape(), vec![2000, 3]);
+}
+
+/// A bed that only conducts restarts bit for bit, and its restart data hold no laser or
+/// boundary arrays (the scene has neither source, so the run keeps none). The packed cube of the
+/// conducting column, its upper half at 1000 K over the lower at 300 K, 400 steps against 200 and
+/// 200 more resumed: heat flows through the contacts across the restart.
+#[test]
+fn a_bed_that_only_conducts_restarts_bit_for_bit_without_laser_or_boundary_arrays() {
+    let dir = tempfile::tempdir().unwrap();
+    let cube = common::conducting::packed_cube("2e-3").replace(
+        "\n[output]",
+        "\n[[thermal.initial_region]]\nmin_corner_m = [-inf, -inf, 0.01]\n\
+         max_corner_m = [inf, inf, inf]\ntemperature_k = 1000\n[output]",
+    );
+    let full = cube.replace("column.h5", "full.h5");
+    let half = cube
+        .replace("duration_s = 2e-3", "duration_s = 1e-3")
+        .replace("column.h5", "half.h5");
+    assert!(half != cube.replace("column.h5", "half.h5"), "the duration");
+    write_halves(dir.path(), &full, &half);
+    run_ok(dir.path(), &["full.toml"]);
+    run_ok(dir.path(), &["half.toml"]);
+    run_ok(dir.path(), &["continue.toml", "--restart", "half.h5"]);
+    let (a, b) = (
+        fingerprint(&dir.path().join("full.h5")),
+        fingerprint(&dir.path().join("half.h5")),
+    );
+    assert_eq!(a.2, 400);
+    assert_eq!(a, b, "2T and T + restart T differ");
+    let file = hdf5::File::open(dir.path().join("half.h5")).unwrap();
+    let frames = file.group("frames").unwrap().member_names().unwrap();
+    let enthalpy = |frame: &str| -> Vec<f64> {
+        let path = format!("frames/{frame}/restart/enthalpy");
+        file.dataset(&path).unwrap().read_raw().unwrap()
+    };
+    let (first, last) = (frames.first().unwrap(), frames.last().unwrap());
+    assert!(enthalpy(first) != enthalpy(last), "heat flowed");
+    for frame in &frames {
+        let restart = file.group(&format!("frames/{frame}/restart")).unwrap();
+        assert!(restart.link_exists("enthalpy"), "{frame}");
+        for absent in ["laser_power", "laser_energy", "boundary_energy"] {
+            assert!(!restart.link_exists(absent), "{frame}: {absent}");
+        }
+    }
 }
 
 /// The long run of the interruption tests: frames every 200 steps, series rows every 50 (in

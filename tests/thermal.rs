@@ -111,6 +111,103 @@ fn radiative_cooling_follows_the_closed_form() {
     assert!(worst < 1e-4, "{worst}");
 }
 
+/// Each heat source keeps its per-particle arrays only where the scene has it, so that a scene
+/// pays for none it does not ask for: a sphere at 500 K that only holds its heat has neither the
+/// laser's nor the boundary's; cooled by its gas, the boundary's only; under a laser without
+/// exchange, the laser's only; with both, both. Each source's total is counted where it acts
+/// (the laser's positive, the cooling gas's negative) and is 0 where it is absent, and the heat
+/// balance closes in every case: the sphere has no contact, so its enthalpy changes only by what
+/// the sources brought (100 steps, each adding round-off of an ulp of E, far below 1e-10).
+#[test]
+fn each_heat_source_keeps_its_arrays_only_where_the_scene_has_it() {
+    let convection =
+        "[thermal.convection]\nheat_transfer_coefficient_w_m2_k = 50\ngas_temperature_k = 300";
+    for (laser, exchange) in [(false, false), (false, true), (true, false), (true, true)] {
+        let thermal = format!(
+            "initial_temperature_k = 500\nconduction = \"none\"\n{}",
+            if exchange { convection } else { "" }
+        );
+        let extra = if laser { STATIONARY_LASER } else { "" };
+        let mut sim = one_sphere(1e-5, 1e-3, &thermal, "absorptivity = 0.5", extra);
+        let start = sim.diagnostics().thermal.expect("thermal diagnostics");
+        for _ in 0..100 {
+            sim.step();
+        }
+        let case = format!("laser {laser}, exchange {exchange}");
+        let t = sim.thermal.as_ref().expect("[thermal]");
+        assert_eq!(
+            t.laser.as_ref().map(|l| (l.power.len(), l.energy.len())),
+            laser.then_some((1, 1)),
+            "{case}"
+        );
+        let boundary = t.boundary.as_ref().map(|b| b.energy.len());
+        assert_eq!(boundary, exchange.then_some(1), "{case}");
+        let d = sim.diagnostics().thermal.expect("thermal diagnostics");
+        assert_eq!(
+            d.laser_energy > 0.0,
+            laser,
+            "{case}: {:e} J",
+            d.laser_energy
+        );
+        assert_eq!(d.laser_energy == 0.0, !laser, "{case}");
+        assert_eq!(d.boundary_energy < 0.0, exchange, "{case}");
+        assert_eq!(d.boundary_energy == 0.0, !exchange, "{case}");
+        let stored = d.enthalpy - start.enthalpy;
+        assert_eq!(stored == 0.0, !laser && !exchange, "{case}: {stored:e} J");
+        assert!(
+            d.heat_residual.abs() < 1e-10,
+            "{case}: {:e}",
+            d.heat_residual
+        );
+    }
+}
+
+/// A resumed run keeps the saved arrays of the sources its scene has and no others: a laser's
+/// saved powers of the wrong length are refused, the message naming them; the laser's and
+/// boundary's arrays saved for a scene that has neither (as earlier versions saved them for any
+/// scene with heat) are dropped; a source with nothing saved starts at zero.
+#[test]
+fn a_resumed_run_keeps_the_arrays_of_the_sources_its_scene_has() {
+    let heated = |laser: &str| {
+        let thermal = "initial_temperature_k = 500\nconduction = \"none\"";
+        let mut sim = one_sphere(1e-5, 1e-3, thermal, "absorptivity = 0.5", laser);
+        for _ in 0..10 {
+            sim.step();
+        }
+        sim
+    };
+    let (lit, plain) = (heated(STATIONARY_LASER), heated(""));
+    let saved_laser = lit.restart_state();
+    let laser = saved_laser.thermal.as_ref().and_then(|t| t.laser.clone());
+    assert!(laser.as_ref().is_some_and(|l| l.energy[0] > 0.0));
+    let resume = |sim: &Simulation, state| {
+        Simulation::resume(sim.model.clone(), sim.particles.clone(), state)
+    };
+    // The laser's arrays, one particle short.
+    let mut short = saved_laser.clone();
+    let saved = short
+        .thermal
+        .as_mut()
+        .and_then(|t| t.laser.as_mut())
+        .unwrap();
+    saved.power.clear();
+    let error = resume(&lit, short).expect_err("refused");
+    assert!(error.contains("0 laser powers for 1 particles"), "{error}");
+    // Laser and boundary arrays saved for the scene without either: dropped.
+    let mut old = plain.restart_state();
+    let thermal = old.thermal.as_mut().unwrap();
+    (thermal.laser, thermal.boundary_energy) = (laser.clone(), Some(vec![-1.0]));
+    let resumed = resume(&plain, old).expect("resumed");
+    let t = resumed.thermal.as_ref().unwrap();
+    assert!(t.laser.is_none() && t.boundary.is_none());
+    // The laser's scene resumed from the scene without it: its laser energy starts at zero,
+    // and from its own restart data it carries on with the saved one.
+    let resumed = resume(&lit, plain.restart_state()).expect("resumed");
+    assert_eq!(resumed.thermal.unwrap().total_laser_energy(), 0.0);
+    let resumed = resume(&lit, saved_laser).expect("resumed");
+    assert_eq!(resumed.thermal.unwrap().laser, laser);
+}
+
 #[test]
 fn constant_power_heats_linearly_and_the_latent_heat_holds_a_plateau() {
     let latent = 2.7e5;
@@ -126,7 +223,7 @@ fn constant_power_heats_linearly_and_the_latent_heat_holds_a_plateau() {
     let c = capacity(R);
     let mass_latent = c / CP * latent;
     sim.step();
-    let power = sim.thermal.as_ref().unwrap().laser_power[0];
+    let power = sim.thermal.as_ref().unwrap().laser.as_ref().unwrap().power[0];
     assert!(power > 0.0 && power <= 0.5 * 5.0, "absorbed {power} W");
     let (mut plateau_start, mut plateau_end) = (None, None);
     let mut linear_error: f64 = 0.0;
@@ -514,7 +611,7 @@ fn a_sphere_heated_past_its_boiling_point_stays_there_and_its_vapour_carries_off
     let mass = c / CP;
     let start = sim.diagnostics();
     sim.step();
-    let power = sim.thermal.as_ref().unwrap().laser_power[0];
+    let power = sim.thermal.as_ref().unwrap().laser.as_ref().unwrap().power[0];
     assert!(power > 0.0 && power <= 0.5 * 5.0, "absorbed {power} W");
     // Closed form: the sphere reaches T_b once P t = C (T_b − T_0) + m L.
     let boiling_at = (c * (boiling - 300.0) + mass * latent) / power;

@@ -227,8 +227,9 @@ pub struct PassHeat<'a> {
     pub heat_capacity: &'a [f64],
     /// Out: net heat flow \[W\] and total conductance G_i [W/K].
     pub sums: &'a mut [HeatSums],
-    /// Out: heat flow from walls, gas and surroundings \[W\].
-    pub boundary_flow: &'a mut [f64],
+    /// Out: heat flow from walls, gas and surroundings \[W\], where the model exchanges heat
+    /// with them.
+    pub boundary_flow: Option<&'a mut [f64]>,
 }
 
 /// What the force pass needs and fills for scenes with friction or rolling resistance.
@@ -469,7 +470,7 @@ pub fn compute(
     // chunk's end; else the pair pass's largest G_i bounds it.
     let every_particle = heat
         .as_ref()
-        .is_some_and(|h| h.laser_power.is_some() || h.model.has_boundary_exchange());
+        .is_some_and(|h| h.laser_power.is_some() || h.boundary_flow.is_some());
     let walls = (&*walls, every_particle);
     // As for the pair pass: one compiled particle pass per combination of optional physics.
     let own = match (rotation.is_some(), heat.is_some()) {

@@ -98,14 +98,12 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
     let lost_out: Scatter<'_, f64, PerParticle> = Scatter::new(&mut dissipated);
     let heat = heat.map(|h| ParticleHeat {
         model: h.model,
-        // Decided once per pass: a scene without exchange (or laser) has none to add, and its
-        // boundary flows stay zero.
-        exchange: h.model.has_boundary_exchange(),
         temperature: h.temperature,
         laser_power: h.laser_power,
         heat_capacity: h.heat_capacity,
         sums: Scatter::new(h.sums),
-        boundary_flow: Scatter::new(h.boundary_flow),
+        // Decided by the scene: a model without exchange has no flows to add or keep.
+        boundary_flow: h.boundary_flow.map(Scatter::new),
     });
     let outputs = Outputs {
         force: force_out,
@@ -233,14 +231,13 @@ fn prefetch_particle<'v>(
 /// The thermal part of the particle pass.
 struct ParticleHeat<'a> {
     model: &'a ThermalModel,
-    /// `model.has_boundary_exchange()`.
-    exchange: bool,
     temperature: &'a [f64],
     laser_power: Option<&'a [f64]>,
     heat_capacity: &'a [f64],
     /// Net heat flow \[W\] and total conductance [W/K].
     sums: Scatter<'a, HeatSums, PerParticle>,
-    boundary_flow: Scatter<'a, f64, PerParticle>,
+    /// Heat flow from walls, gas and surroundings \[W\]: `None` without exchange.
+    boundary_flow: Option<Scatter<'a, f64, PerParticle>>,
 }
 
 /// The heat of a chunk's particles on its way through the boundary kernel: with exchange, the
@@ -255,7 +252,10 @@ struct HeatRound<'c> {
 impl<'c> HeatRound<'c> {
     fn new(heat: &ParticleHeat<'_>, walls: &[crate::model::Wall]) -> Self {
         Self {
-            lanes: heat.exchange.then(|| BoundaryLanes::new(heat.model, walls)),
+            lanes: heat
+                .boundary_flow
+                .as_ref()
+                .map(|_| BoundaryLanes::new(heat.model, walls)),
             particles: Vec::with_capacity(LANES),
         }
     }
@@ -320,8 +320,8 @@ fn finish_particle(heat: &ParticleHeat<'_>, particle: Member<'_>, outside: Optio
         sums.flow += added;
     }
     heat.sums.update(particle, |_| sums);
-    if let Some((outside, _)) = outside {
-        heat.boundary_flow.update(particle, |_| outside);
+    if let (Some((outside, _)), Some(flows)) = (outside, &heat.boundary_flow) {
+        flows.update(particle, |_| outside);
     }
 }
 

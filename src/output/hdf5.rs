@@ -30,6 +30,7 @@ use super::xdmf::{self, FrameMeta, POINT_INDEX};
 use super::{OutputError, SeriesColumn, SeriesKind, SeriesLayout, SeriesValue, series_columns};
 use crate::laser::Snapshot;
 use crate::simulation::{Removed, RestartState, RotationRestart, ThermalRestart};
+use crate::thermal::LaserHeat;
 
 /// Value of the root attribute `format`.
 pub const FORMAT_NAME: &str = "am-sim";
@@ -450,9 +451,13 @@ fn write_restart(group: &Group, state: &RestartState) -> hdf5::Result<()> {
             .new_dataset_builder()
             .with_data(ArrayView1::from(&melted))
             .create("melted")?;
-        plain("laser_power", ArrayView1::from(&t.laser_power))?;
-        plain("laser_energy", ArrayView1::from(&t.laser_energy))?;
-        plain("boundary_energy", ArrayView1::from(&t.boundary_energy))?;
+        if let Some(laser) = &t.laser {
+            plain("laser_power", ArrayView1::from(&laser.power))?;
+            plain("laser_energy", ArrayView1::from(&laser.energy))?;
+        }
+        if let Some(energy) = &t.boundary_energy {
+            plain("boundary_energy", ArrayView1::from(energy))?;
+        }
         if let Some(evaporated) = &t.evaporated {
             plain("evaporated_heat", ArrayView1::from(evaporated))?;
         }
@@ -557,6 +562,13 @@ pub fn read_last_frame(path: &Path) -> Result<SavedRun> {
                 .map(|c| DVec3::new(c[0], c[1], c[2]))
                 .collect())
         };
+        let optional = |name: &str| -> hdf5::Result<Option<Vec<f64>>> {
+            if restart.link_exists(name) {
+                Ok(Some(restart.dataset(name)?.read_raw()?))
+            } else {
+                Ok(None)
+            }
+        };
         let thermal = if restart.link_exists("enthalpy") {
             Some(ThermalRestart {
                 enthalpy: restart.dataset("enthalpy")?.read_raw()?,
@@ -566,14 +578,18 @@ pub fn read_last_frame(path: &Path) -> Result<SavedRun> {
                     .into_iter()
                     .map(|m| m != 0)
                     .collect(),
-                laser_power: restart.dataset("laser_power")?.read_raw()?,
-                laser_energy: restart.dataset("laser_energy")?.read_raw()?,
-                boundary_energy: restart.dataset("boundary_energy")?.read_raw()?,
-                evaporated: if restart.link_exists("evaporated_heat") {
-                    Some(restart.dataset("evaporated_heat")?.read_raw()?)
+                // (A file of an earlier version holds the laser's and boundary's arrays for
+                // every scene with heat: one without the source drops them on resuming.)
+                laser: if restart.link_exists("laser_power") {
+                    Some(LaserHeat {
+                        power: restart.dataset("laser_power")?.read_raw()?,
+                        energy: restart.dataset("laser_energy")?.read_raw()?,
+                    })
                 } else {
                     None
                 },
+                boundary_energy: optional("boundary_energy")?,
+                evaporated: optional("evaporated_heat")?,
                 max_substeps: restart.attr("max_substeps")?.read_scalar()?,
             })
         } else {

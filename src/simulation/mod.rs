@@ -200,7 +200,7 @@ impl Simulation {
         let thermal = model
             .thermal
             .as_ref()
-            .map(|t| ThermalState::new(t, &particles));
+            .map(|t| ThermalState::new(t, &particles, model.laser.is_some()));
         let rotation = model
             .friction
             .as_ref()
@@ -291,8 +291,12 @@ impl Simulation {
             if let Some(t) = &self.thermal {
                 removed.enthalpy += t.enthalpy[k];
                 removed.enthalpy_change += t.enthalpy[k] - t.start_enthalpy[k];
-                removed.laser_energy += t.laser_energy[k];
-                removed.boundary_energy += t.boundary_energy[k];
+                if let Some(laser) = &t.laser {
+                    removed.laser_energy += laser.energy[k];
+                }
+                if let Some(boundary) = &t.boundary {
+                    removed.boundary_energy += boundary.energy[k];
+                }
                 if let Some(evaporation) = &t.evaporation {
                     let heat = evaporation.evaporated[k];
                     removed.evaporated += heat;
@@ -541,20 +545,20 @@ impl Simulation {
                 let ThermalState {
                     temperature,
                     melted,
-                    laser_power,
+                    laser,
                     heat_capacity,
                     heat_sums,
-                    boundary_flow,
+                    boundary,
                     ..
                 } = state;
                 Some(forces::PassHeat {
                     model,
                     melted,
                     temperature,
-                    laser_power: self.model.laser.is_some().then_some(laser_power.as_slice()),
+                    laser_power: laser.as_ref().map(|l| l.power.as_slice()),
                     heat_capacity,
                     sums: heat_sums,
-                    boundary_flow,
+                    boundary_flow: boundary.as_mut().map(|b| b.flow.as_mut_slice()),
                 })
             }
             _ => None,
@@ -682,8 +686,8 @@ impl Simulation {
     /// Laser absorption with the beam at mid-step, on the drifted positions (before the force
     /// passes, which fold the absorbed power into the first substep's heat balance).
     fn absorb_laser(&mut self) {
-        let (Some(model), Some(state), Some(laser)) =
-            (&self.model.thermal, &mut self.thermal, &self.model.laser)
+        let heat = self.thermal.as_mut().and_then(|t| t.laser.as_mut());
+        let (Some(model), Some(heat), Some(laser)) = (&self.model.thermal, heat, &self.model.laser)
         else {
             return;
         };
@@ -694,10 +698,10 @@ impl Simulation {
                 Some(at) => {
                     let absorptivity =
                         |k: usize| model.materials[usize::from(p.material[k])].absorptivity;
-                    laser.absorb(at, p, absorptivity, &mut state.laser_power)
+                    laser.absorb(at, p, absorptivity, &mut heat.power)
                 }
                 None => {
-                    state.laser_power.fill(0.0);
+                    heat.power.fill(0.0);
                     Vec::new()
                 }
             };
@@ -718,7 +722,6 @@ impl Simulation {
                 thermal::StepInfo {
                     dt: self.model.dt,
                     first_flows,
-                    laser_on: self.model.laser.is_some(),
                     periodic: self.model.periodic.as_ref(),
                 },
             );

@@ -10,7 +10,7 @@ use crate::laser;
 use crate::model::Model;
 use crate::neighbor::HeldPairs;
 use crate::particles::{Particles, Rotation};
-use crate::thermal::{self, ThermalState};
+use crate::thermal::{self, LaserHeat, ThermalState};
 use crate::wall_history::WallSprings;
 
 /// What a resumed run needs beyond positions and velocities (see [`Simulation::restart_state`]).
@@ -63,12 +63,11 @@ pub struct ThermalRestart {
     pub enthalpy: Vec<f64>,
     /// Latched melting flags.
     pub melted: Vec<bool>,
-    /// Laser power of the last cast \[W\].
-    pub laser_power: Vec<f64>,
-    /// Laser energy absorbed so far, per particle \[J\].
-    pub laser_energy: Vec<f64>,
-    /// Boundary heat so far, per particle \[J\].
-    pub boundary_energy: Vec<f64>,
+    /// With a `[laser]`: the power of the last cast \[W\] and the energy absorbed so far \[J\],
+    /// per particle.
+    pub laser: Option<LaserHeat>,
+    /// With heat exchanged with walls, gas or surroundings: the heat so far, per particle \[J\].
+    pub boundary_energy: Option<Vec<f64>>,
     /// Heat carried off by evaporation so far, per particle \[J\]: with a material that
     /// evaporates (M.80).
     pub evaporated: Option<Vec<f64>>,
@@ -89,9 +88,8 @@ impl Simulation {
             thermal: self.thermal.as_ref().map(|t| ThermalRestart {
                 enthalpy: t.enthalpy.clone(),
                 melted: t.melted.clone(),
-                laser_power: t.laser_power.clone(),
-                laser_energy: t.laser_energy.clone(),
-                boundary_energy: t.boundary_energy.clone(),
+                laser: t.laser.clone(),
+                boundary_energy: t.boundary.as_ref().map(|b| b.energy.clone()),
                 evaporated: t.evaporation.as_ref().map(|e| e.evaporated.clone()),
                 max_substeps: t.max_substeps,
             }),
@@ -203,7 +201,7 @@ impl Simulation {
         }
         let thermal = match (&model.thermal, state.thermal) {
             (Some(thermal_model), Some(saved)) => {
-                let mut t = ThermalState::new(thermal_model, &particles);
+                let mut t = ThermalState::new(thermal_model, &particles, model.laser.is_some());
                 if saved.enthalpy.len() != n || saved.melted.len() != n {
                     return Err(format!(
                         "restart data has {} temperatures for {n} particles",
@@ -220,20 +218,30 @@ impl Simulation {
                     );
                 }
                 t.melted = saved.melted;
-                t.laser_power = saved.laser_power;
-                t.laser_energy = saved.laser_energy;
-                t.boundary_energy = saved.boundary_energy;
-                // A file without the evaporated heat (saved by a scene without evaporation) starts
-                // it at zero; the resumed run's heat balance starts anew anyway.
+                // A file without the arrays of a source the scene has (saved by a scene without
+                // it) starts them at zero, and a source the scene no longer has drops its arrays:
+                // the resumed run's heat balance starts anew anyway. (A laser whose power was not
+                // saved has no snapshot either, and casts anew at the first step.)
+                let fits = |len: usize, what: &str| {
+                    if len == n {
+                        Ok(())
+                    } else {
+                        Err(format!("restart data has {len} {what} for {n} particles"))
+                    }
+                };
+                if let (Some(laser), Some(saved)) = (&mut t.laser, saved.laser) {
+                    fits(saved.power.len(), "laser powers")?;
+                    fits(saved.energy.len(), "laser energies")?;
+                    *laser = saved;
+                }
+                if let (Some(boundary), Some(energy)) = (&mut t.boundary, saved.boundary_energy) {
+                    fits(energy.len(), "boundary heats")?;
+                    boundary.energy = energy;
+                }
                 if let (Some(evaporation), Some(evaporated)) =
                     (&mut t.evaporation, saved.evaporated)
                 {
-                    if evaporated.len() != n {
-                        return Err(format!(
-                            "restart data has {} evaporated heats for {n} particles",
-                            evaporated.len()
-                        ));
-                    }
+                    fits(evaporated.len(), "evaporated heats")?;
                     evaporation.evaporated = evaporated;
                 }
                 t.max_substeps = saved.max_substeps;

@@ -101,7 +101,6 @@ fn the_temperature_update_takes_the_substep_count_of_the_largest_rate_from_any_b
                 StepInfo {
                     dt,
                     first_flows: Some(first_flows),
-                    laser_on: false,
                     periodic: sim.model.periodic.as_ref(),
                 },
             );
@@ -161,7 +160,6 @@ fn flow_passes_without_stored_conductances_match_the_stored_ones_to_the_bit() {
             StepInfo {
                 dt,
                 first_flows: None,
-                laser_on: false,
                 periodic,
             },
         )

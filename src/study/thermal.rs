@@ -124,7 +124,7 @@ fn plateau(dt: f64) -> (f64, f64, f64) {
         end.is_some()
     });
     let state = sim.thermal.as_ref().expect("thermal scene");
-    let expected = state.latent_heat[0] / state.laser_power[0];
+    let expected = state.latent_heat[0] / state.laser.as_ref().expect("[laser]").power[0];
     let measured = end.expect("melted through within 1 s") - start.expect("reached T_m");
     (measured, expected, wall_time)
 }

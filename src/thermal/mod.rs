@@ -33,7 +33,6 @@ pub(crate) use boundary::BoundaryLanes;
 pub use boundary::boundary_heat;
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use crate::model::Wall;
 use crate::neighbor::NeighborList;
@@ -269,8 +268,9 @@ pub struct ThermalState {
     pub evaporation: Option<Evaporation>,
     /// Latched bond criterion: the particle has reached its melting point at some time.
     pub melted: Vec<bool>,
-    /// Laser power absorbed during the current step \[W\].
-    pub laser_power: Vec<f64>,
+    /// With a `[laser]`: each particle's absorbed power and energy. `None` otherwise: no
+    /// arrays, and neither the passes nor the output carry them.
+    pub laser: Option<LaserHeat>,
     /// Per pair slot of the neighbour list: contact conductance H [W/K] of this step, stored
     /// only by a step that takes more than one thermal substep ([`advance`]); stale otherwise.
     pub conductance: Vec<f64>,
@@ -278,14 +278,10 @@ pub struct ThermalState {
     /// total conductance G_i (M.49), side by side: the pair pass adds to both of a partner's at
     /// once.
     pub(crate) heat_sums: Vec<HeatSums>,
-    /// Heat flow from walls, gas and surroundings into each particle \[W\] (part of the net
-    /// flow).
-    pub(crate) boundary_flow: Vec<f64>,
-    /// Per particle: laser energy absorbed since the start \[J\]. Kept per particle, so the pass
-    /// that adds to it writes only its own slot; totals are summed when asked for.
-    pub laser_energy: Vec<f64>,
-    /// Per particle: heat received from walls, gas and surroundings since the start \[J\].
-    pub boundary_energy: Vec<f64>,
+    /// Where the model exchanges heat with held walls, a gas or the surroundings
+    /// ([`ThermalModel::has_boundary_exchange`]): each particle's boundary flow and energy.
+    /// `None` otherwise: no arrays, and no accumulation in the update.
+    pub boundary: Option<BoundaryHeat>,
     /// Per particle: the enthalpy at the start of this run \[J\] ([`ThermalState::mark_start`]).
     /// The heat balance compares particle by particle: a sum of small changes, not the
     /// difference of two large sums, whose round-off would swamp a bed's conduction.
@@ -322,11 +318,15 @@ impl ThermalState {
             select(&mut evaporation.evaporated, order);
         }
         select(&mut self.melted, order);
-        select(&mut self.laser_power, order);
         select(&mut self.heat_sums, order);
-        select(&mut self.boundary_flow, order);
-        select(&mut self.laser_energy, order);
-        select(&mut self.boundary_energy, order);
+        if let Some(laser) = &mut self.laser {
+            select(&mut laser.power, order);
+            select(&mut laser.energy, order);
+        }
+        if let Some(boundary) = &mut self.boundary {
+            select(&mut boundary.flow, order);
+            select(&mut boundary.energy, order);
+        }
         select(&mut self.start_enthalpy, order);
     }
 
@@ -347,6 +347,27 @@ impl ThermalState {
                 (stored + (e - e0), moved + 0.5 * (e - e0).abs())
             })
     }
+}
+
+/// Per particle, the heat a `[laser]` brings (structure of arrays, like [`ThermalState`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LaserHeat {
+    /// Laser power absorbed during the current step \[W\] (M.51).
+    pub power: Vec<f64>,
+    /// Laser energy absorbed since the start \[J\]. Kept per particle, so that the pass that adds
+    /// to it writes only its own slot; totals are summed when asked for.
+    pub energy: Vec<f64>,
+}
+
+/// Per particle, the heat exchanged with held walls, a gas and the surroundings (structure of
+/// arrays, like [`ThermalState`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BoundaryHeat {
+    /// Heat flow into each particle at the start of the current substep \[W\] (M.43-M.45, part
+    /// of the net flow M.47).
+    pub(crate) flow: Vec<f64>,
+    /// Heat received since the start \[J\] (negative: lost).
+    pub energy: Vec<f64>,
 }
 
 /// Per particle, where evaporation begins and what it has carried off (M.80), structure of
@@ -433,9 +454,11 @@ pub fn melt_fraction(
 }
 
 impl ThermalState {
-    /// Every particle at the model's initial temperature.
+    /// Every particle at the model's initial temperature; with the laser's arrays if the scene
+    /// has a `[laser]` (`laser`), with the boundary's if the model exchanges heat with walls, gas
+    /// or surroundings.
     #[must_use]
-    pub fn new(model: &ThermalModel, particles: &Particles) -> Self {
+    pub fn new(model: &ThermalModel, particles: &Particles, laser: bool) -> Self {
         let n = particles.len();
         let mut state = Self::default();
         for k in 0..n {
@@ -463,11 +486,15 @@ impl ThermalState {
                 latent_heat: material.latent_heat,
             });
         }
-        state.laser_power = vec![0.0; n];
         state.heat_sums = vec![HeatSums::default(); n];
-        state.boundary_flow = vec![0.0; n];
-        state.laser_energy = vec![0.0; n];
-        state.boundary_energy = vec![0.0; n];
+        state.laser = laser.then(|| LaserHeat {
+            power: vec![0.0; n],
+            energy: vec![0.0; n],
+        });
+        state.boundary = model.has_boundary_exchange().then(|| BoundaryHeat {
+            flow: vec![0.0; n],
+            energy: vec![0.0; n],
+        });
         if model.materials.iter().any(|m| m.vaporization.is_some()) {
             let boiling_enthalpy = (0..n)
                 .map(|k| {
@@ -497,16 +524,20 @@ impl ThermalState {
         self.enthalpy.iter().sum()
     }
 
-    /// Laser energy absorbed by all particles since the start \[J\] (summed in index order).
+    /// Laser energy absorbed by all particles since the start \[J\] (summed in index order; 0
+    /// without a laser).
     #[must_use]
     pub fn total_laser_energy(&self) -> f64 {
-        self.laser_energy.iter().sum()
+        self.laser.as_ref().map_or(0.0, |l| l.energy.iter().sum())
     }
 
-    /// Heat received from walls, gas and surroundings since the start \[J\] (negative: lost).
+    /// Heat received from walls, gas and surroundings since the start \[J\] (negative: lost; 0
+    /// without boundary exchange).
     #[must_use]
     pub fn total_boundary_energy(&self) -> f64 {
-        self.boundary_energy.iter().sum()
+        self.boundary
+            .as_ref()
+            .map_or(0.0, |b| b.energy.iter().sum())
     }
 
     /// Sets one particle's temperature (and its enthalpy consistently), e.g. for tests.
@@ -687,8 +718,9 @@ fn heat_rate(sums: &HeatSums, heat_capacity: &f64) -> f64 {
     sums.conductance / heat_capacity
 }
 
-/// A chunk's laser and boundary energy accumulators, kept with a laser or boundary exchange.
-type Accumulators<'a> = Option<(&'a mut [f64], &'a mut [f64])>;
+/// A chunk's laser and boundary energy accumulators \[J\], each kept where the scene has its
+/// source.
+type Accumulators<'a> = (Option<&'a mut [f64]>, Option<&'a mut [f64]>);
 
 /// A chunk of the temperature update: enthalpies, temperatures and melted flags, its
 /// accumulators, and with evaporation the heat its vapour carried off.
@@ -869,8 +901,6 @@ pub struct StepInfo<'a> {
     /// When the force gather already computed the first substep's heat flows: what it knows of
     /// their `max G_i / C_i`.
     pub first_flows: Option<HeatRate>,
-    /// Whether the scene has a laser (else the laser-energy accumulators are skipped).
-    pub laser_on: bool,
     /// The periodic axes, for the contact conductances of a step that needs more substeps.
     pub periodic: Option<&'a crate::periodic::Periodic>,
 }
@@ -901,7 +931,6 @@ pub fn advance(
     let StepInfo {
         dt,
         first_flows,
-        laser_on,
         periodic,
     } = step;
     let n = particles.len();
@@ -943,27 +972,22 @@ pub fn advance(
             evaporation,
             melted,
             heat_sums,
-            laser_power,
-            boundary_flow,
-            laser_energy,
-            boundary_energy,
+            laser,
+            boundary,
             ..
         } = state;
         let mass = &particles.mass;
-        // The energy accumulators cost two more streams; a scene without laser and boundary
-        // exchange does not pay for them (its laser and boundary powers are zero anyway).
-        let accumulate = laser_on || model.has_boundary_exchange();
-        let (laser_energy, boundary_energy) = if accumulate {
-            (
-                Some(laser_energy.as_mut_slice()),
-                Some(boundary_energy.as_mut_slice()),
-            )
-        } else {
-            (None, None)
-        };
-        let accumulators = optional_items(laser_energy)
-            .zip(optional_items(boundary_energy))
-            .map(|(laser, boundary)| laser.zip(boundary));
+        // Each energy accumulator costs two more streams, paid only where the scene has its
+        // source.
+        let (laser_power, laser_energy) = laser
+            .as_mut()
+            .map(|l| (l.power.as_slice(), l.energy.as_mut_slice()))
+            .unzip();
+        let (boundary_flow, boundary_energy) = boundary
+            .as_mut()
+            .map(|b| (b.flow.as_slice(), b.energy.as_mut_slice()))
+            .unzip();
+        let accumulators = optional_items(laser_energy).zip(optional_items(boundary_energy));
         let (boiling_enthalpy, evaporated) = evaporation
             .as_mut()
             .map(|e| (e.boiling_enthalpy.as_slice(), e.evaporated.as_mut_slice()))
@@ -1002,16 +1026,9 @@ pub fn advance(
                     evaporated,
                 },
             );
-            if let Some((laser, boundary)) = accumulated {
-                let powers = laser_power[particles.clone()].iter();
-                for (laser, power) in laser.iter_mut().zip(powers) {
-                    *laser += dt_sub * power;
-                }
-                let flows = boundary_flow[particles].iter();
-                for (boundary, flow) in boundary.iter_mut().zip(flows) {
-                    *boundary += dt_sub * flow;
-                }
-            }
+            let (laser_energy, boundary_energy) = accumulated;
+            accumulate(laser_energy, laser_power, particles.clone(), dt_sub);
+            accumulate(boundary_energy, boundary_flow, particles, dt_sub);
         };
         // The members of the thread team take the same share of the chunks as in the step's
         // other passes.
@@ -1026,6 +1043,21 @@ pub fn advance(
     state.substeps = substeps;
     state.max_substeps = state.max_substeps.max(substeps);
     worst
+}
+
+/// Adds `dt_sub` \[s\] times each of the chunk `particles`' powers \[W\] to its energy \[J\], where
+/// the scene keeps both.
+fn accumulate(
+    energy: Option<&mut [f64]>,
+    power: Option<&[f64]>,
+    particles: std::ops::Range<usize>,
+    dt_sub: f64,
+) {
+    if let (Some(energy), Some(power)) = (energy, power) {
+        for (energy, power) in energy.iter_mut().zip(&power[particles]) {
+            *energy += dt_sub * power;
+        }
+    }
 }
 
 /// The largest `G_i / C_i` [1/s] (M.49) of the heat sums as they stand, on the thread team for
@@ -1080,28 +1112,42 @@ fn heat_flows(
     }
     let ThermalState {
         temperature,
-        laser_power,
+        laser,
         heat_sums,
-        boundary_flow,
+        boundary,
         heat_capacity,
         ..
     } = state;
     let temperature = &*temperature;
-    let finish = |(k, (s, boundary)): (usize, (&mut HeatSums, &mut f64))| -> f64 {
-        let (outside, outside_conductance) =
-            boundary_heat(model, walls, particles, k, temperature[k]);
-        *boundary = outside;
-        s.flow += outside + laser_power[k];
-        s.conductance += outside_conductance;
-        heat_rate(s, &heat_capacity[k])
+    let laser_power = laser.as_ref().map(|l| l.power.as_slice());
+    let boundary_flow = boundary.as_mut().map(|b| b.flow.as_mut_slice());
+    let chunks: Vec<_> = heat_sums
+        .chunks_mut(PARTICLES_PER_ITEM)
+        .zip(optional_items(boundary_flow))
+        .collect();
+    let finish = |c: usize, (sums, mut flows): (&mut [HeatSums], Option<&mut [f64]>)| {
+        let mut worst: f64 = 0.0;
+        for (i, s) in sums.iter_mut().enumerate() {
+            let k = c * PARTICLES_PER_ITEM + i;
+            let (outside, outside_conductance) =
+                boundary_heat(model, walls, particles, k, temperature[k]);
+            if let Some(flows) = flows.as_deref_mut() {
+                flows[i] = outside;
+            }
+            // (Without a laser its power is +0, as the arrays once held.)
+            s.flow += outside + laser_power.map_or(0.0, |p| p[k]);
+            s.conductance += outside_conductance;
+            worst = worst.max(heat_rate(s, &heat_capacity[k]));
+        }
+        worst
     };
-    if parallel {
-        let out = heat_sums.par_iter_mut().zip(boundary_flow.par_iter_mut());
-        out.enumerate().map(finish).reduce(|| 0.0, f64::max)
-    } else {
-        let out = heat_sums.iter_mut().zip(boundary_flow.iter_mut());
-        out.enumerate().map(finish).fold(0.0, f64::max)
-    }
+    crate::team::fold_items(
+        parallel,
+        chunks,
+        || 0.0,
+        |worst: f64, c, chunk| worst.max(finish(c, chunk)),
+        f64::max,
+    )
 }
 
 /// Adds every listed pair's heat flow `H (T_b − T_a)` and conductance H to both particles'
@@ -1201,7 +1247,7 @@ mod tests {
                 7950.0,
             );
         }
-        let state = ThermalState::new(&model, &particles);
+        let state = ThermalState::new(&model, &particles, false);
         let evaporation = state.evaporation.as_ref().expect("one material boils");
         for k in 0..4 {
             let expected = if particles.material[k] == 1 {
@@ -1214,7 +1260,11 @@ mod tests {
         assert_eq!(evaporation.evaporated, vec![0.0; 4]);
         // Without a material that boils, the state carries no evaporation arrays.
         model.materials[1].vaporization = None;
-        assert!(ThermalState::new(&model, &particles).evaporation.is_none());
+        assert!(
+            ThermalState::new(&model, &particles, false)
+                .evaporation
+                .is_none()
+        );
     }
 
     /// A bed at 300 K is inert only while every boundary it exchanges with is at 300 K and no
@@ -1292,7 +1342,7 @@ mod tests {
                 };
                 particles.push(init, 7950.0);
             }
-            let mut state = ThermalState::new(&model, &particles);
+            let mut state = ThermalState::new(&model, &particles, false);
             let constants = state.one_material.expect("one material");
             for k in 0..n {
                 // From 300 K to 3300 K, past the plateau and the boiling point.
@@ -1357,7 +1407,7 @@ mod tests {
         // Several materials keep the columns.
         let two = ThermalModel::bare(vec![steel_like(None); 2], ConductionModel::BatchelorObrien);
         assert!(
-            ThermalState::new(&two, &Particles::default())
+            ThermalState::new(&two, &Particles::default(), false)
                 .one_material
                 .is_none()
         );
