@@ -125,10 +125,10 @@ fn the_temperature_update_takes_the_substep_count_of_the_largest_rate_from_any_b
     }
 }
 
-/// The largest `G_i / C_i` measured once (`thermal::max_stiffness`, as the run's start and the
-/// diagnostics take it), and a step of one substep without the force pass's flows, compute each
-/// contact's conductance as they meet the pair and keep no per-slot array, whose 8 B a pair slot
-/// would set a heated bed's peak memory. A step of three substeps stores the conductances for
+/// The largest `G_i / C_i` measured once (`thermal::max_stiffness`, as the run's start takes it,
+/// and `max_stiffness_aside`, as the diagnostics take it, to the same bits), and a step of one
+/// substep without the force pass's flows, compute each contact's conductance as they meet the
+/// pair and keep no per-slot array, whose 8 B a pair slot would set a heated bed's peak memory. A step of three substeps stores the conductances for
 /// its second and third flow passes; its temperatures and heat sums are the same to the bit as
 /// those of three steps of a third of its length, each of one substep, which compute every
 /// conductance from the positions.
@@ -150,6 +150,16 @@ fn flow_passes_without_stored_conductances_match_the_stored_ones_to_the_bit() {
     );
     assert!(rate > 0.0);
     assert_eq!(measured.conductance.capacity(), 0);
+    // Measured aside (as the diagnostics measure it), in heat sums of its own: the same rate.
+    let aside = thermal::max_stiffness_aside(
+        model,
+        &sim.model.walls,
+        periodic,
+        &sim.particles,
+        &sim.neighbors,
+        state,
+    );
+    assert_eq!(aside.to_bits(), rate.to_bits());
     let advance = |state: &mut ThermalState, dt: f64| {
         thermal::advance(
             model,

@@ -670,15 +670,58 @@ fn slot_conductance(
 enum SlotConductances<'a> {
     /// In the state's per-slot array ([`update_conductances`]): a step of several substeps
     /// computes them once and reads them in each.
-    Stored,
+    Stored(&'a [f64]),
     /// From the positions, as the pass meets each pair (with the periodic axes): a measurement
     /// made once keeps no array of 8 B a pair slot, which would set the run's peak memory.
     FromPositions(Option<&'a crate::periodic::Periodic>),
 }
 
+/// What a pass of heat flows reads of the state.
+#[derive(Clone, Copy)]
+struct FlowReads<'a> {
+    temperature: &'a [f64],
+    heat_capacity: &'a [f64],
+    /// With a laser.
+    laser_power: Option<&'a [f64]>,
+}
+
+/// What a pass of heat flows writes: each particle's heat sums and, where the scene keeps
+/// them, its boundary flows.
+struct FlowSums<'a> {
+    sums: &'a mut [HeatSums],
+    boundary_flow: Option<&'a mut [f64]>,
+}
+
+impl ThermalState {
+    /// What a flow pass reads of this state.
+    fn flow_reads(&self) -> FlowReads<'_> {
+        FlowReads {
+            temperature: &self.temperature,
+            heat_capacity: &self.heat_capacity,
+            laser_power: self.laser.as_ref().map(|l| l.power.as_slice()),
+        }
+    }
+
+    /// This state as a flow pass of the run takes it: what it reads, the stored per-slot
+    /// conductances, and the run's own heat sums and boundary flows, which it writes.
+    fn flow_pass_parts(&mut self) -> (FlowReads<'_>, &[f64], FlowSums<'_>) {
+        let reads = FlowReads {
+            temperature: &self.temperature,
+            heat_capacity: &self.heat_capacity,
+            laser_power: self.laser.as_ref().map(|l| l.power.as_slice()),
+        };
+        let sums = FlowSums {
+            sums: &mut self.heat_sums,
+            boundary_flow: self.boundary.as_mut().map(|b| b.flow.as_mut_slice()),
+        };
+        (reads, &self.conductance, sums)
+    }
+}
+
 /// Largest `G_i / C_i` over the particles [1/s] (M.49) for the current positions and
-/// temperatures: its inverse is the smallest thermal time constant. Fills `state`'s heat flows;
-/// keeps no per-slot conductances (it computes each as it meets the pair).
+/// temperatures: its inverse is the smallest thermal time constant. Fills `state`'s heat flows
+/// (the run's first substep takes them); keeps no per-slot conductances (it computes each as it
+/// meets the pair).
 #[must_use]
 pub fn max_stiffness(
     model: &ThermalModel,
@@ -688,13 +731,38 @@ pub fn max_stiffness(
     list: &NeighborList,
     state: &mut ThermalState,
 ) -> f64 {
+    let (reads, _, sums) = state.flow_pass_parts();
+    let conductances = SlotConductances::FromPositions(periodic);
+    heat_flows(model, walls, particles, list, reads, conductances, sums)
+}
+
+/// [`max_stiffness`] measured aside, for diagnostics: the state is left as it was, and the
+/// measurement holds only heat sums of its own (16 B a particle) while it runs, not a copy of
+/// the whole thermal state (some 100 B a particle, which set a heated bed's peak memory when
+/// the run's start report measured it so).
+#[must_use]
+pub fn max_stiffness_aside(
+    model: &ThermalModel,
+    walls: &[Wall],
+    periodic: Option<&crate::periodic::Periodic>,
+    particles: &Particles,
+    list: &NeighborList,
+    state: &ThermalState,
+) -> f64 {
+    let mut own = vec![HeatSums::default(); state.heat_sums.len()];
+    let sums = FlowSums {
+        sums: &mut own,
+        boundary_flow: None,
+    };
+    let conductances = SlotConductances::FromPositions(periodic);
     heat_flows(
         model,
         walls,
         particles,
         list,
-        state,
-        SlotConductances::FromPositions(periodic),
+        state.flow_reads(),
+        conductances,
+        sums,
     )
 }
 
@@ -953,14 +1021,9 @@ pub fn advance(
     let dt_sub = dt / f64::from(substeps);
     for substep in 0..substeps {
         if substep > 0 {
-            heat_flows(
-                model,
-                walls,
-                particles,
-                list,
-                state,
-                SlotConductances::Stored,
-            );
+            let (reads, stored, sums) = state.flow_pass_parts();
+            let conductances = SlotConductances::Stored(stored);
+            heat_flows(model, walls, particles, list, reads, conductances, sums);
         }
         let ThermalState {
             enthalpy,
@@ -1073,54 +1136,43 @@ pub fn max_heat_rate_of(state: &ThermalState) -> f64 {
 }
 
 /// Net heat flow into every particle at the current temperatures \[W\] and its total conductance
-/// G_i: a coloured pass over the pairs (each pair's flow added to both particles, in the list's
-/// fixed order), then the boundary exchange and laser power per particle. Returns
+/// G_i, into `out`: a coloured pass over the pairs (each pair's flow added to both particles, in
+/// the list's fixed order), then the boundary exchange and laser power per particle. Returns
 /// `max_i G_i / C_i` [1/s]. The first substep of a step gets these from the force pass instead.
 fn heat_flows(
     model: &ThermalModel,
     walls: &[Wall],
     particles: &Particles,
     list: &NeighborList,
-    state: &mut ThermalState,
+    reads: FlowReads<'_>,
     conductances: SlotConductances,
+    out: FlowSums<'_>,
 ) -> f64 {
     let _pass = crate::team::PassName::enter("heat flows");
-    let parallel = crate::worth_parallel(state.temperature.len());
-    state.heat_sums.fill(HeatSums::default());
+    let FlowReads {
+        temperature,
+        heat_capacity,
+        laser_power,
+    } = reads;
+    let FlowSums {
+        sums: heat_sums,
+        boundary_flow,
+    } = out;
+    let parallel = crate::worth_parallel(temperature.len());
+    heat_sums.fill(HeatSums::default());
     // One loop for each source, so that no pair tests which it is.
     match conductances {
-        SlotConductances::Stored => {
-            let (stored, temperature) = (&state.conductance, &state.temperature);
-            add_pair_flows(
-                list,
-                parallel,
-                temperature,
-                &mut state.heat_sums,
-                |slot, _, _| stored[slot],
-            );
+        SlotConductances::Stored(stored) => {
+            add_pair_flows(list, parallel, temperature, heat_sums, |slot, _, _| {
+                stored[slot]
+            });
         }
         SlotConductances::FromPositions(periodic) => {
-            let temperature = &state.temperature;
-            add_pair_flows(
-                list,
-                parallel,
-                temperature,
-                &mut state.heat_sums,
-                |_, a, b| slot_conductance(model, periodic, particles, list, a, b),
-            );
+            add_pair_flows(list, parallel, temperature, heat_sums, |_, a, b| {
+                slot_conductance(model, periodic, particles, list, a, b)
+            });
         }
     }
-    let ThermalState {
-        temperature,
-        laser,
-        heat_sums,
-        boundary,
-        heat_capacity,
-        ..
-    } = state;
-    let temperature = &*temperature;
-    let laser_power = laser.as_ref().map(|l| l.power.as_slice());
-    let boundary_flow = boundary.as_mut().map(|b| b.flow.as_mut_slice());
     let chunks: Vec<_> = heat_sums
         .chunks_mut(PARTICLES_PER_ITEM)
         .zip(optional_items(boundary_flow))
