@@ -193,21 +193,20 @@ impl Simulation {
     /// A message if the saved state does not fit the scene (array lengths).
     pub fn resume(model: Model, particles: Particles, state: RestartState) -> Result<Self, String> {
         let n = particles.len();
-        if state.force.len() != n {
-            return Err(format!(
-                "restart data has {} forces for {n} particles",
-                state.force.len()
-            ));
-        }
+        // Each saved per-particle array must hold one entry a particle.
+        let fits = |len: usize, what: &str| {
+            if len == n {
+                Ok(())
+            } else {
+                Err(format!("restart data has {len} {what} for {n} particles"))
+            }
+        };
+        fits(state.force.len(), "forces")?;
         let thermal = match (&model.thermal, state.thermal) {
             (Some(thermal_model), Some(saved)) => {
                 let mut t = ThermalState::new(thermal_model, &particles, model.laser.is_some());
-                if saved.enthalpy.len() != n || saved.melted.len() != n {
-                    return Err(format!(
-                        "restart data has {} temperatures for {n} particles",
-                        saved.enthalpy.len()
-                    ));
-                }
+                fits(saved.enthalpy.len(), "temperatures")?;
+                fits(saved.melted.len(), "melt flags")?;
                 for k in 0..n {
                     t.enthalpy[k] = saved.enthalpy[k];
                     t.temperature[k] = thermal::temperature_from_enthalpy(
@@ -222,13 +221,6 @@ impl Simulation {
                 // it) starts them at zero, and a source the scene no longer has drops its arrays:
                 // the resumed run's heat balance starts anew anyway. (A laser whose power was not
                 // saved has no snapshot either, and casts anew at the first step.)
-                let fits = |len: usize, what: &str| {
-                    if len == n {
-                        Ok(())
-                    } else {
-                        Err(format!("restart data has {len} {what} for {n} particles"))
-                    }
-                };
                 if let (Some(laser), Some(saved)) = (&mut t.laser, saved.laser) {
                     fits(saved.power.len(), "laser powers")?;
                     fits(saved.energy.len(), "laser energies")?;
