@@ -692,24 +692,27 @@ struct FlowSums<'a> {
     boundary_flow: Option<&'a mut [f64]>,
 }
 
+impl<'a> FlowReads<'a> {
+    /// A state's temperatures, capacities and, with a laser, its powers.
+    fn of(temperature: &'a [f64], heat_capacity: &'a [f64], laser: Option<&'a LaserHeat>) -> Self {
+        Self {
+            temperature,
+            heat_capacity,
+            laser_power: laser.map(|l| l.power.as_slice()),
+        }
+    }
+}
+
 impl ThermalState {
     /// What a flow pass reads of this state.
     fn flow_reads(&self) -> FlowReads<'_> {
-        FlowReads {
-            temperature: &self.temperature,
-            heat_capacity: &self.heat_capacity,
-            laser_power: self.laser.as_ref().map(|l| l.power.as_slice()),
-        }
+        FlowReads::of(&self.temperature, &self.heat_capacity, self.laser.as_ref())
     }
 
     /// This state as a flow pass of the run takes it: what it reads, the stored per-slot
     /// conductances, and the run's own heat sums and boundary flows, which it writes.
     fn flow_pass_parts(&mut self) -> (FlowReads<'_>, &[f64], FlowSums<'_>) {
-        let reads = FlowReads {
-            temperature: &self.temperature,
-            heat_capacity: &self.heat_capacity,
-            laser_power: self.laser.as_ref().map(|l| l.power.as_slice()),
-        };
+        let reads = FlowReads::of(&self.temperature, &self.heat_capacity, self.laser.as_ref());
         let sums = FlowSums {
             sums: &mut self.heat_sums,
             boundary_flow: self.boundary.as_mut().map(|b| b.flow.as_mut_slice()),
