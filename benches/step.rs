@@ -49,10 +49,9 @@ fn bench(c: &mut Criterion) {
         let mut sim = column(scale, thermal);
         if thermal {
             // A temperature gradient, so that heat actually flows.
-            let heights: Vec<f64> = sim.particles.position.iter().map(|x| x.z).collect();
             let state = sim.thermal.as_mut().expect("thermal");
-            for (k, z) in heights.iter().enumerate() {
-                state.set_temperature(k, 300.0 + 2e4 * z);
+            for (k, x) in sim.particles.position.iter().enumerate() {
+                state.set_temperature(&sim.particles, k, 300.0 + 2e4 * x.z);
             }
         }
         group.throughput(Throughput::Elements(sim.particles.len() as u64));

@@ -18,10 +18,9 @@ mod common;
 
 /// A vertical temperature gradient, so that heat flows through every contact.
 fn gradient(sim: &mut Simulation, kelvin_per_metre: f64) {
-    let heights: Vec<f64> = sim.particles.position.iter().map(|x| x.z).collect();
     if let Some(state) = sim.thermal.as_mut() {
-        for (k, z) in heights.into_iter().enumerate() {
-            state.set_temperature(k, 300.0 + kelvin_per_metre * z);
+        for (k, x) in sim.particles.position.iter().enumerate() {
+            state.set_temperature(&sim.particles, k, 300.0 + kelvin_per_metre * x.z);
         }
     }
 }

@@ -890,23 +890,24 @@ impl<'v, T> Opened<'_, 'v, T, PerParticle> {
     }
 
     /// As [`Opened::inspect_chunk`], with the elements of the chunk's range of another
-    /// per-particle array, `beside`, which the pass only reads (heat capacities beside the heat
-    /// sums, say). Its elements are plain values (`Copy`, `'static`: no reference that could
-    /// reach this scatter).
+    /// per-particle array, `beside.0`, which the pass only reads (heat capacities beside the
+    /// heat sums, say), and a value `beside.1` for every element (a material's specific heat
+    /// beside the masses, say). Both are plain values (`Copy`, `'static`: no reference that
+    /// could reach this scatter).
     ///
     /// # Panics
-    /// If `beside` is shorter than the chunk's range reaches.
+    /// If `beside.0` is shorter than the chunk's range reaches.
     #[inline]
-    pub fn inspect_chunk_beside<U: Copy + 'static, R>(
+    pub fn inspect_chunk_beside<U: Copy + 'static, C: Copy + 'static, R>(
         &self,
         chunk: &ParticleChunk<'v>,
-        beside: &[U],
-        inspect: fn(&[T], &[U]) -> R,
+        (beside, context): (&[U], C),
+        inspect: fn(&[T], &[U], C) -> R,
     ) -> R {
         let beside = &beside[chunk.range()];
         // SAFETY: only `inspect` sees the slice, and neither it nor `beside` (another array,
-        // read only, of plain values) can reach this scatter.
-        inspect(unsafe { self.chunk_elements(chunk) }, beside)
+        // read only, of plain values) nor `context` (a plain value) can reach this scatter.
+        inspect(unsafe { self.chunk_elements(chunk) }, beside, context)
     }
 
     /// The elements of every particle in `chunk`'s range, as one slice.

@@ -56,8 +56,8 @@ material = "steel"
 /// Sets the two temperatures, takes one step, returns the pair's bond state.
 fn after_one_step(sim: &mut Simulation, t0: f64, t1: f64) -> BondState {
     let thermal = sim.thermal.as_mut().unwrap();
-    thermal.set_temperature(0, t0);
-    thermal.set_temperature(1, t1);
+    thermal.set_temperature(&sim.particles, 0, t0);
+    thermal.set_temperature(&sim.particles, 1, t1);
     sim.step();
     sim.bond_state(0, 1)
 }

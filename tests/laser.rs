@@ -203,7 +203,7 @@ fn a_moving_beam_heats_particles_along_its_path_at_the_right_times() {
     // All eight received about the same energy (same geometry along the path).
     let t = sim.thermal.as_ref().unwrap();
     let energies: Vec<f64> = (0..8)
-        .map(|k| t.enthalpy[k] - t.heat_capacity[k] * 300.0)
+        .map(|k| t.enthalpy[k] - t.heat_constants(&sim.particles, k).heat_capacity * 300.0)
         .collect();
     let mean = energies.iter().sum::<f64>() / 8.0;
     assert!(

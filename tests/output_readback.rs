@@ -66,6 +66,22 @@ fn frames_hold_the_in_memory_state() {
         melted.iter().filter(|m| **m == 1).count(),
         sim.diagnostics().thermal.unwrap().melted
     );
+    // The share of the latent heat taken (M.48), `(E − m c T_m) / (m L)` clamped to [0, 1],
+    // with the scene's 316L (c = 500 J/(kg·K), T_m = 1700 K, L = 2.7e5 J/kg): a handful of
+    // roundings on values of order 1 apart, so 1e-12 bounds any difference of their order.
+    let fraction: Vec<f64> = last.dataset("melt_fraction").unwrap().read_raw().unwrap();
+    let thermal = sim.thermal.as_ref().unwrap();
+    assert_eq!(fraction.len(), n);
+    for (k, f) in fraction.iter().enumerate() {
+        let mass = sim.particles.mass[k];
+        let above = thermal.enthalpy[k] - mass * 500.0 * 1700.0;
+        let expected = (above / (mass * 2.7e5)).clamp(0.0, 1.0);
+        assert!(
+            (f - expected).abs() < 1e-12,
+            "particle {k}: {f} against {expected}"
+        );
+    }
+    assert!(fraction.contains(&1.0), "no particle melted through");
     let bonds: Vec<u64> = last.dataset("bonds").unwrap().read_raw().unwrap();
     let ids = &sim.particles.id;
     let mut from_file: Vec<(u64, u64)> = bonds

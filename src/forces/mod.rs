@@ -31,7 +31,7 @@ use crate::pair_history::TangentialHistories;
 use crate::particles::{Particles, Rotation};
 use crate::periodic::Periodic;
 use crate::scatter::{OpenedReads, ParticleTokens, Scatter};
-use crate::thermal::{HeatSums, ThermalModel};
+use crate::thermal::{HeatMaterials, HeatSums, ThermalModel};
 use crate::wall_history::WallKey;
 
 mod lanes;
@@ -223,8 +223,8 @@ pub struct PassHeat<'a> {
     pub temperature: &'a [f64],
     /// Absorbed laser power \[W\], with a `[laser]` (without one it is zero).
     pub laser_power: Option<&'a [f64]>,
-    /// Heat capacities [J/K].
-    pub heat_capacity: &'a [f64],
+    /// Where the heat capacities come from.
+    pub materials: &'a HeatMaterials,
     /// Out: net heat flow \[W\] and total conductance G_i [W/K].
     pub sums: &'a mut [HeatSums],
     /// Out: heat flow from walls, gas and surroundings \[W\], where the model exchanges heat

@@ -26,7 +26,7 @@ use crate::particles::{Particles, Rotation};
 use crate::scatter::{self, Member, Opened, ParticleChunk, PerParticle, Scatter};
 use crate::simd::InstructionSet;
 use crate::team::PARTICLES_PER_ITEM;
-use crate::thermal::{BoundaryLanes, HeatSums, ThermalModel};
+use crate::thermal::{self, BoundaryLanes, HeatSums, MaterialReads, ThermalModel};
 use crate::wall_history::WallKey;
 
 /// The particle pass: the wall contacts of the wall candidates `walls.0` (normal, and with
@@ -100,7 +100,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         model: h.model,
         temperature: h.temperature,
         laser_power: h.laser_power,
-        heat_capacity: h.heat_capacity,
+        materials: h.materials.reads(&state.mass),
         sums: Scatter::new(h.sums),
         // Decided by the scene: a model without exchange has no flows to add or keep.
         boundary_flow: h.boundary_flow.map(Scatter::new),
@@ -161,11 +161,19 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
             heat_round.finish(h, set);
             // The largest G_i / C_i (M.49) of the chunk's finished sums, which the round has
             // just written: one vector kernel over the chunk while they are in the cache.
-            let rate = h.sums.open_chunk(chunk).inspect_chunk_beside(
-                chunk,
-                h.heat_capacity,
-                crate::thermal::max_heat_rate,
-            );
+            let sums = h.sums.open_chunk(chunk);
+            let rate = match h.materials {
+                MaterialReads::One { mass, constants } => sums.inspect_chunk_beside(
+                    chunk,
+                    (mass, constants.specific_heat()),
+                    thermal::max_heat_rate_of_masses,
+                ),
+                MaterialReads::Columns { heat_capacity, .. } => sums.inspect_chunk_beside(
+                    chunk,
+                    (heat_capacity, ()),
+                    |sums, heat_capacity, ()| thermal::max_heat_rate(sums, heat_capacity),
+                ),
+            };
             summary.max_heat_rate = Some(summary.max_heat_rate.map_or(rate, |m| m.max(rate)));
         }
         // The chunk's forces are finished (the walls were the last to add): every particle of
@@ -233,7 +241,7 @@ struct ParticleHeat<'a> {
     model: &'a ThermalModel,
     temperature: &'a [f64],
     laser_power: Option<&'a [f64]>,
-    heat_capacity: &'a [f64],
+    materials: MaterialReads<'a>,
     /// Net heat flow \[W\] and total conductance [W/K].
     sums: Scatter<'a, HeatSums, PerParticle>,
     /// Heat flow from walls, gas and surroundings \[W\]: `None` without exchange.

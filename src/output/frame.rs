@@ -221,11 +221,12 @@ pub fn capture(sim: &Simulation, selected: &[OptionalField]) -> Frame {
         if has(OptionalField::MeltFraction) {
             let fraction = (0..p.len())
                 .map(|k| {
+                    let constants = t.heat_constants(p, k);
                     crate::thermal::melt_fraction(
                         t.enthalpy[k],
-                        t.heat_capacity[k],
-                        t.melting_point[k],
-                        t.latent_heat[k],
+                        constants.heat_capacity,
+                        constants.melting_point,
+                        constants.latent_heat,
                     )
                 })
                 .collect();

@@ -252,7 +252,7 @@ impl Simulation {
                     * self
                         .force_summary
                         .max_heat_rate
-                        .unwrap_or_else(|| thermal::max_heat_rate_of(t)),
+                        .unwrap_or_else(|| thermal::max_heat_rate_of(t, &self.particles)),
                 heat_residual: 0.0,
                 stored: stored + self.removed.enthalpy_change,
                 exchanged,

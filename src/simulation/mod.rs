@@ -261,7 +261,7 @@ impl Simulation {
         };
         for (k, x) in self.particles.position.iter().enumerate() {
             if let Some(temperature) = model.region_temperature(*x) {
-                state.set_temperature(k, temperature);
+                state.set_temperature(&self.particles, k, temperature);
             }
         }
     }
@@ -509,7 +509,7 @@ impl Simulation {
     fn reorder(&mut self, order: &[u32]) {
         self.particles.select(order);
         if let Some(t) = &mut self.thermal {
-            t.select(order);
+            t.select(order, &self.particles.mass);
         }
         if let Some(r) = &mut self.rotation {
             r.select(order);
@@ -546,7 +546,7 @@ impl Simulation {
                     temperature,
                     melted,
                     laser,
-                    heat_capacity,
+                    materials,
                     heat_sums,
                     boundary,
                     ..
@@ -556,7 +556,7 @@ impl Simulation {
                     melted,
                     temperature,
                     laser_power: laser.as_ref().map(|l| l.power.as_slice()),
-                    heat_capacity,
+                    materials,
                     sums: heat_sums,
                     boundary_flow: boundary.as_mut().map(|b| b.flow.as_mut_slice()),
                 })

@@ -208,12 +208,13 @@ impl Simulation {
                 fits(saved.enthalpy.len(), "temperatures")?;
                 fits(saved.melted.len(), "melt flags")?;
                 for k in 0..n {
+                    let constants = t.heat_constants(&particles, k);
                     t.enthalpy[k] = saved.enthalpy[k];
                     t.temperature[k] = thermal::temperature_from_enthalpy(
                         saved.enthalpy[k],
-                        t.heat_capacity[k],
-                        t.melting_point[k],
-                        t.latent_heat[k],
+                        constants.heat_capacity,
+                        constants.melting_point,
+                        constants.latent_heat,
                     );
                 }
                 t.melted = saved.melted;

@@ -24,7 +24,7 @@ fn packed_bed(scale: f64) -> Simulation {
     for k in 0..sim.particles.len() {
         let z = sim.particles.position[k].z;
         let thermal = sim.thermal.as_mut().expect("[thermal]");
-        thermal.set_temperature(k, 300.0 + 5e4 * z);
+        thermal.set_temperature(&sim.particles, k, 300.0 + 5e4 * z);
     }
     for _ in 0..3 {
         sim.step();
@@ -54,16 +54,16 @@ fn the_pair_pass_bounds_the_largest_heat_rate_by_the_largest_conductance() {
             .fold(0.0, f64::max);
         assert!(largest > 0.0);
         assert_eq!(summary.max_conductance.to_bits(), largest.to_bits());
-        let smallest = state
-            .heat_capacity
-            .iter()
-            .copied()
+        // Each particle's own C_i = m_i c: the state's smallest, `min_i(m_i) c` for one
+        // material, is their smallest to the bit.
+        let smallest = (0..sim.particles.len())
+            .map(|k| state.heat_constants(&sim.particles, k).heat_capacity)
             .fold(f64::INFINITY, f64::min);
         assert_eq!(state.min_heat_capacity.to_bits(), smallest.to_bits());
         let HeatRate::AtMost(bound) = HeatRate::at_most(largest, smallest) else {
             unreachable!("`at_most` makes a bound")
         };
-        let exact = thermal::max_heat_rate_of(state);
+        let exact = thermal::max_heat_rate_of(state, &sim.particles);
         assert!(exact > 0.0);
         if scale == 1.0 {
             assert_eq!(bound.to_bits(), exact.to_bits(), "one size");
@@ -86,7 +86,7 @@ fn the_temperature_update_takes_the_substep_count_of_the_largest_rate_from_any_b
     let sim = packed_bed(1.05);
     let model = sim.model.thermal.as_ref().expect("[thermal]");
     let state = sim.thermal.as_ref().expect("[thermal]");
-    let exact = thermal::max_heat_rate_of(state);
+    let exact = thermal::max_heat_rate_of(state, &sim.particles);
     let fraction = model.substep_fraction;
     for (share, substeps) in [(0.5, 1), (2.5, 3)] {
         let dt = share * fraction / exact;

@@ -255,14 +255,10 @@ pub struct ThermalState {
     pub temperature: Vec<f64>,
     /// Enthalpy \[J\], the integrated state (M.48).
     pub enthalpy: Vec<f64>,
-    /// Heat capacity `C = m c` [J/K]. (A scene of one material's temperature update makes `C`
-    /// and `m L` from the masses instead, to the same bits: [`ThermalState::new`] makes the
-    /// columns from them.)
-    pub heat_capacity: Vec<f64>,
-    /// Latent heat of the whole particle `m L` \[J\].
-    pub latent_heat: Vec<f64>,
-    /// Melting point \[K\] (per particle, from its material).
-    pub melting_point: Vec<f64>,
+    /// Where each particle's heat capacity `C = m c`, melting point and latent heat `m L` come
+    /// from: a scene of one material makes them from the masses, several keep a column each
+    /// ([`ThermalState::heat_constants`] reads them).
+    pub(crate) materials: HeatMaterials,
     /// With a material that evaporates: its particles' boiling enthalpies and the heat their
     /// vapour carried off (M.80). `None` otherwise: no arrays, and no test in the update.
     pub evaporation: Option<Evaporation>,
@@ -287,15 +283,9 @@ pub struct ThermalState {
     /// difference of two large sums, whose round-off would swamp a bed's conduction.
     pub start_enthalpy: Vec<f64>,
     /// The smallest heat capacity `min_i C_i` [J/K] (infinite without particles), which
-    /// bounds `max G_i / C_i` from the largest G_i ([`HeatRate::AtMost`]). Kept with the
-    /// capacities: taken when they are made and when particles are dropped or reordered
-    /// ([`ThermalState::select`]).
+    /// bounds `max G_i / C_i` from the largest G_i ([`HeatRate::AtMost`]). Taken when the
+    /// state is made and when particles are dropped or reordered ([`ThermalState::select`]).
     pub(crate) min_heat_capacity: f64,
-    /// A scene of one material: its constants, from which the temperature update makes each
-    /// particle's `C = m c` and `m L` with the particle's mass, as [`ThermalState::new`] makes
-    /// the columns (bitwise the same), reading 8 B a particle where the columns are 24.
-    /// `None` for several materials.
-    pub(crate) one_material: Option<MaterialConstants>,
     /// Substeps taken in the last step.
     pub substeps: u32,
     /// Most substeps taken in one step so far.
@@ -303,16 +293,15 @@ pub struct ThermalState {
 }
 
 impl ThermalState {
-    /// Reorders the thermal state like `Particles::select`; the per-pair conductances are
-    /// rebuilt with the neighbour list.
-    pub fn select(&mut self, order: &[u32]) {
+    /// Reorders the thermal state like `Particles::select`, `mass` being the masses \[kg\] of
+    /// the particles so selected; the per-pair conductances are rebuilt with the neighbour
+    /// list.
+    pub fn select(&mut self, order: &[u32], mass: &[f64]) {
         use crate::particles::select;
         select(&mut self.temperature, order);
         select(&mut self.enthalpy, order);
-        select(&mut self.heat_capacity, order);
-        self.min_heat_capacity = smallest(&self.heat_capacity);
-        select(&mut self.latent_heat, order);
-        select(&mut self.melting_point, order);
+        self.materials.select(order);
+        self.min_heat_capacity = self.materials.smallest_capacity(mass);
         if let Some(evaporation) = &mut self.evaporation {
             select(&mut evaporation.boiling_enthalpy, order);
             select(&mut evaporation.evaporated, order);
@@ -460,32 +449,23 @@ impl ThermalState {
     #[must_use]
     pub fn new(model: &ThermalModel, particles: &Particles, laser: bool) -> Self {
         let n = particles.len();
-        let mut state = Self::default();
-        for k in 0..n {
-            let material = &model.materials[usize::from(particles.material[k])];
-            let capacity = particles.mass[k] * material.specific_heat;
-            let latent = particles.mass[k] * material.latent_heat;
-            let t0 = model.initial_temperature;
-            state.heat_capacity.push(capacity);
-            state.latent_heat.push(latent);
-            state.melting_point.push(material.melting_point);
-            state.enthalpy.push(enthalpy_from_temperature(
-                t0,
-                capacity,
-                material.melting_point,
-                latent,
-            ));
-            state.temperature.push(t0);
-            state.melted.push(t0 >= material.melting_point);
-        }
-        state.min_heat_capacity = smallest(&state.heat_capacity);
-        if let [material] = model.materials.as_slice() {
-            state.one_material = Some(MaterialConstants {
-                specific_heat: material.specific_heat,
-                melting_point: material.melting_point,
-                latent_heat: material.latent_heat,
-            });
-        }
+        let mut state = Self {
+            materials: HeatMaterials::of(model, particles),
+            ..Self::default()
+        };
+        let constants = state.materials.reads(&particles.mass);
+        let t0 = model.initial_temperature;
+        (state.enthalpy, state.melted) = (0..n)
+            .map(|k| {
+                let (capacity, melting_point, latent) = constants.at(k);
+                (
+                    enthalpy_from_temperature(t0, capacity, melting_point, latent),
+                    t0 >= melting_point,
+                )
+            })
+            .unzip();
+        state.temperature = vec![t0; n];
+        state.min_heat_capacity = state.materials.smallest_capacity(&particles.mass);
         state.heat_sums = vec![HeatSums::default(); n];
         state.laser = laser.then(|| LaserHeat {
             power: vec![0.0; n],
@@ -496,16 +476,13 @@ impl ThermalState {
             energy: vec![0.0; n],
         });
         if model.materials.iter().any(|m| m.vaporization.is_some()) {
+            let constants = state.materials.reads(&particles.mass);
             let boiling_enthalpy = (0..n)
                 .map(|k| {
                     let material = &model.materials[usize::from(particles.material[k])];
                     material.vaporization.map_or(f64::INFINITY, |v| {
-                        enthalpy_from_temperature(
-                            v.boiling_point,
-                            state.heat_capacity[k],
-                            material.melting_point,
-                            state.latent_heat[k],
-                        )
+                        let (capacity, melting_point, latent) = constants.at(k);
+                        enthalpy_from_temperature(v.boiling_point, capacity, melting_point, latent)
                     })
                 })
                 .collect();
@@ -540,16 +517,26 @@ impl ThermalState {
             .map_or(0.0, |b| b.energy.iter().sum())
     }
 
-    /// Sets one particle's temperature (and its enthalpy consistently), e.g. for tests.
-    pub fn set_temperature(&mut self, k: usize, temperature: f64) {
-        self.enthalpy[k] = enthalpy_from_temperature(
-            temperature,
-            self.heat_capacity[k],
-            self.melting_point[k],
-            self.latent_heat[k],
-        );
+    /// Sets particle `k`'s temperature \[K\] (and its enthalpy consistently), e.g. for tests;
+    /// `particles` are the state's own.
+    pub fn set_temperature(&mut self, particles: &Particles, k: usize, temperature: f64) {
+        let (capacity, melting_point, latent) = self.materials.reads(&particles.mass).at(k);
+        self.enthalpy[k] = enthalpy_from_temperature(temperature, capacity, melting_point, latent);
         self.temperature[k] = temperature;
-        self.melted[k] |= temperature >= self.melting_point[k];
+        self.melted[k] |= temperature >= melting_point;
+    }
+
+    /// Particle `k`'s heat capacity, melting point and latent heat (M.48), made from its mass
+    /// as the passes make them; `particles` are the state's own.
+    #[must_use]
+    pub fn heat_constants(&self, particles: &Particles, k: usize) -> HeatConstants {
+        let (heat_capacity, melting_point, latent_heat) =
+            self.materials.reads(&particles.mass).at(k);
+        HeatConstants {
+            heat_capacity,
+            melting_point,
+            latent_heat,
+        }
     }
 }
 
@@ -680,7 +667,7 @@ enum SlotConductances<'a> {
 #[derive(Clone, Copy)]
 struct FlowReads<'a> {
     temperature: &'a [f64],
-    heat_capacity: &'a [f64],
+    materials: MaterialReads<'a>,
     /// With a laser.
     laser_power: Option<&'a [f64]>,
 }
@@ -693,26 +680,39 @@ struct FlowSums<'a> {
 }
 
 impl<'a> FlowReads<'a> {
-    /// A state's temperatures, capacities and, with a laser, its powers.
-    fn of(temperature: &'a [f64], heat_capacity: &'a [f64], laser: Option<&'a LaserHeat>) -> Self {
+    /// A state's temperatures, heat capacities and, with a laser, its powers.
+    fn of(
+        temperature: &'a [f64],
+        materials: MaterialReads<'a>,
+        laser: Option<&'a LaserHeat>,
+    ) -> Self {
         Self {
             temperature,
-            heat_capacity,
+            materials,
             laser_power: laser.map(|l| l.power.as_slice()),
         }
     }
 }
 
 impl ThermalState {
-    /// What a flow pass reads of this state.
-    fn flow_reads(&self) -> FlowReads<'_> {
-        FlowReads::of(&self.temperature, &self.heat_capacity, self.laser.as_ref())
+    /// What a flow pass reads of this state, with its particles' masses `mass` \[kg\].
+    fn flow_reads<'a>(&'a self, mass: &'a [f64]) -> FlowReads<'a> {
+        FlowReads::of(
+            &self.temperature,
+            self.materials.reads(mass),
+            self.laser.as_ref(),
+        )
     }
 
-    /// This state as a flow pass of the run takes it: what it reads, the stored per-slot
-    /// conductances, and the run's own heat sums and boundary flows, which it writes.
-    fn flow_pass_parts(&mut self) -> (FlowReads<'_>, &[f64], FlowSums<'_>) {
-        let reads = FlowReads::of(&self.temperature, &self.heat_capacity, self.laser.as_ref());
+    /// This state as a flow pass of the run takes it, with its particles' masses `mass` \[kg\]:
+    /// what it reads, the stored per-slot conductances, and the run's own heat sums and
+    /// boundary flows, which it writes.
+    fn flow_pass_parts<'a>(
+        &'a mut self,
+        mass: &'a [f64],
+    ) -> (FlowReads<'a>, &'a [f64], FlowSums<'a>) {
+        let materials = self.materials.reads(mass);
+        let reads = FlowReads::of(&self.temperature, materials, self.laser.as_ref());
         let sums = FlowSums {
             sums: &mut self.heat_sums,
             boundary_flow: self.boundary.as_mut().map(|b| b.flow.as_mut_slice()),
@@ -734,7 +734,7 @@ pub fn max_stiffness(
     list: &NeighborList,
     state: &mut ThermalState,
 ) -> f64 {
-    let (reads, _, sums) = state.flow_pass_parts();
+    let (reads, _, sums) = state.flow_pass_parts(&particles.mass);
     let conductances = SlotConductances::FromPositions(periodic);
     heat_flows(model, walls, particles, list, reads, conductances, sums)
 }
@@ -763,7 +763,7 @@ pub fn max_stiffness_aside(
         walls,
         particles,
         list,
-        state.flow_reads(),
+        state.flow_reads(&particles.mass),
         conductances,
         sums,
     )
@@ -781,6 +781,15 @@ fn smallest(values: &[f64]) -> f64 {
 pub fn max_heat_rate(sums: &[HeatSums], heat_capacity: &[f64]) -> f64 {
     let set = crate::simd::InstructionSet::detect();
     crate::team::largest_in(set, 0.0, (sums, heat_capacity), &heat_rate)
+}
+
+/// [`max_heat_rate`] of particles of one material, of masses `mass` \[kg\] and specific heat
+/// `specific_heat` [J/(kg·K)]: each `C_i = m_i c` made as [`HeatMaterials::One`] makes it.
+#[must_use]
+pub fn max_heat_rate_of_masses(sums: &[HeatSums], mass: &[f64], specific_heat: f64) -> f64 {
+    let set = crate::simd::InstructionSet::detect();
+    let rate = |s: &HeatSums, m: &f64| heat_rate(s, &(m * specific_heat));
+    crate::team::largest_in(set, 0.0, (sums, mass), &rate)
 }
 
 /// A particle's `G_i / C_i` [1/s] (M.49).
@@ -802,7 +811,7 @@ type Chunk<'a> = (
 
 /// One material's constants for the temperature update (SI).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct MaterialConstants {
+pub struct MaterialConstants {
     /// Specific heat c [J/(kg·K)].
     specific_heat: f64,
     /// Melting point T_m \[K\].
@@ -811,10 +820,127 @@ pub(crate) struct MaterialConstants {
     latent_heat: f64,
 }
 
-/// Where the temperature update finds a chunk's heat capacities C \[J/K\], melting points T_m
-/// \[K\] and latent heats m L \[J\] (M.48).
-#[derive(Clone, Copy)]
-enum ChunkMaterials<'a> {
+impl MaterialConstants {
+    /// Specific heat c [J/(kg·K)].
+    pub(crate) fn specific_heat(self) -> f64 {
+        self.specific_heat
+    }
+}
+
+/// A particle's constants of (M.48), SI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeatConstants {
+    /// Heat capacity `C = m c` [J/K].
+    pub heat_capacity: f64,
+    /// Melting point T_m \[K\].
+    pub melting_point: f64,
+    /// Latent heat of the whole particle `m L` \[J\].
+    pub latent_heat: f64,
+}
+
+/// Where each particle's heat capacity `C = m c` \[J/K\], melting point T_m \[K\] and latent
+/// heat `m L` \[J\] (M.48) come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum HeatMaterials {
+    /// A scene of one material: made from each particle's mass and the material's constants
+    /// wherever they are read, with the products the columns are made with (bitwise the same
+    /// values), so that the state keeps no array of them: 24 B a particle less.
+    One(MaterialConstants),
+    /// Several materials: a column each, one entry a particle, made once from the particles'
+    /// masses and materials.
+    Columns {
+        /// `C = m c` [J/K].
+        heat_capacity: Vec<f64>,
+        /// T_m \[K\].
+        melting_point: Vec<f64>,
+        /// `m L` \[J\].
+        latent_heat: Vec<f64>,
+    },
+}
+
+impl Default for HeatMaterials {
+    fn default() -> Self {
+        Self::Columns {
+            heat_capacity: Vec::new(),
+            melting_point: Vec::new(),
+            latent_heat: Vec::new(),
+        }
+    }
+}
+
+impl HeatMaterials {
+    /// The source for `particles` of `model`'s materials.
+    fn of(model: &ThermalModel, particles: &Particles) -> Self {
+        let constants = |m: &ThermalMaterial| MaterialConstants {
+            specific_heat: m.specific_heat,
+            melting_point: m.melting_point,
+            latent_heat: m.latent_heat,
+        };
+        if let [material] = model.materials.as_slice() {
+            return Self::One(constants(material));
+        }
+        let each: Vec<_> = (0..particles.len())
+            .map(|k| {
+                let c = constants(&model.materials[usize::from(particles.material[k])]);
+                OneAt(&particles.mass[k..=k], c).at(0)
+            })
+            .collect();
+        Self::Columns {
+            heat_capacity: each.iter().map(|e| e.0).collect(),
+            melting_point: each.iter().map(|e| e.1).collect(),
+            latent_heat: each.iter().map(|e| e.2).collect(),
+        }
+    }
+
+    /// The constants as the passes read them, with the particles' masses `mass` \[kg\].
+    pub(crate) fn reads<'a>(&'a self, mass: &'a [f64]) -> MaterialReads<'a> {
+        match self {
+            Self::One(constants) => MaterialReads::One {
+                mass,
+                constants: *constants,
+            },
+            Self::Columns {
+                heat_capacity,
+                melting_point,
+                latent_heat,
+            } => MaterialReads::Columns {
+                heat_capacity,
+                melting_point,
+                latent_heat,
+            },
+        }
+    }
+
+    /// Reorders the columns like `Particles::select` (one material has none).
+    fn select(&mut self, order: &[u32]) {
+        use crate::particles::select;
+        if let Self::Columns {
+            heat_capacity,
+            melting_point,
+            latent_heat,
+        } = self
+        {
+            select(heat_capacity, order);
+            select(melting_point, order);
+            select(latent_heat, order);
+        }
+    }
+
+    /// The smallest heat capacity `min_i C_i` [J/K] of particles of masses `mass` \[kg\]
+    /// (infinite for none). For one material `min_i(m_i) c`, which is `min_i(m_i c)` to the
+    /// bit: rounding keeps the order of the products of one positive factor.
+    fn smallest_capacity(&self, mass: &[f64]) -> f64 {
+        match self {
+            Self::One(constants) => smallest(mass) * constants.specific_heat,
+            Self::Columns { heat_capacity, .. } => smallest(heat_capacity),
+        }
+    }
+}
+
+/// Where a pass finds the particles' heat capacities C \[J/K\], melting points T_m \[K\] and
+/// latent heats m L \[J\] (M.48): [`HeatMaterials`] as read, over all particles or a chunk.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum MaterialReads<'a> {
     /// The state's columns, one entry a particle.
     Columns {
         heat_capacity: &'a [f64],
@@ -828,13 +954,54 @@ enum ChunkMaterials<'a> {
     },
 }
 
+impl<'a> MaterialReads<'a> {
+    /// The reads of the particles of `range`.
+    fn cut(self, range: std::ops::Range<usize>) -> Self {
+        match self {
+            Self::Columns {
+                heat_capacity,
+                melting_point,
+                latent_heat,
+            } => Self::Columns {
+                heat_capacity: &heat_capacity[range.clone()],
+                melting_point: &melting_point[range.clone()],
+                latent_heat: &latent_heat[range],
+            },
+            Self::One { mass, constants } => Self::One {
+                mass: &mass[range],
+                constants,
+            },
+        }
+    }
+
+    /// Particle `k`'s `(C, T_m, m L)`: a test of the source each time, for the readers outside
+    /// the update's loops.
+    #[inline]
+    fn at(&self, k: usize) -> (f64, f64, f64) {
+        match *self {
+            Self::Columns {
+                heat_capacity,
+                melting_point,
+                latent_heat,
+            } => ColumnsAt(heat_capacity, melting_point, latent_heat).at(k),
+            Self::One { mass, constants } => OneAt(mass, constants).at(k),
+        }
+    }
+
+    /// Particle `k`'s heat capacity `C` \[J/K\].
+    #[inline]
+    pub(crate) fn heat_capacity(&self, k: usize) -> f64 {
+        self.at(k).0
+    }
+}
+
 /// Particle `i`'s `(C, T_m, m L)` (M.48), from slices of the chunk's length so that the update's
 /// loop holds no bounds check.
 trait MaterialAt {
     fn at(&self, i: usize) -> (f64, f64, f64);
 }
 
-/// [`ChunkMaterials::Columns`] cut to the chunk's length.
+/// [`MaterialReads::Columns`] cut to the chunk's length.
 struct ColumnsAt<'a>(&'a [f64], &'a [f64], &'a [f64]);
 
 impl MaterialAt for ColumnsAt<'_> {
@@ -844,7 +1011,7 @@ impl MaterialAt for ColumnsAt<'_> {
     }
 }
 
-/// [`ChunkMaterials::One`] cut to the chunk's length: `C = m c` and `m L` made as
+/// [`MaterialReads::One`] cut to the chunk's length: `C = m c` and `m L` made as
 /// [`ThermalState::new`] makes the columns.
 struct OneAt<'a>(&'a [f64], MaterialConstants);
 
@@ -867,7 +1034,7 @@ impl MaterialAt for OneAt<'_> {
 struct EnthalpyUpdate<'a> {
     dt: f64,
     flows: &'a [HeatSums],
-    material: ChunkMaterials<'a>,
+    material: MaterialReads<'a>,
     /// Each particle's boiling enthalpy \[J\], if a material boils.
     boiling: Option<&'a [f64]>,
     enthalpy: &'a mut [f64],
@@ -884,7 +1051,7 @@ impl crate::simd::Kernel for EnthalpyUpdate<'_> {
         // A loop of its own for each source, so that a scene of one material reads its masses
         // alone.
         match self.material {
-            ChunkMaterials::Columns {
+            MaterialReads::Columns {
                 heat_capacity,
                 melting_point,
                 latent_heat,
@@ -893,7 +1060,7 @@ impl crate::simd::Kernel for EnthalpyUpdate<'_> {
                 &melting_point[..n],
                 &latent_heat[..n],
             )),
-            ChunkMaterials::One { mass, constants } => self.update(&OneAt(&mass[..n], constants)),
+            MaterialReads::One { mass, constants } => self.update(&OneAt(&mass[..n], constants)),
         }
     }
 }
@@ -1011,7 +1178,7 @@ pub fn advance(
         Some(HeatRate::Exact(worst)) => Some(worst),
         // (A NaN bound fails the test and takes the exact rate.)
         Some(HeatRate::AtMost(bound)) if share(bound) <= 1.0 => None,
-        Some(HeatRate::AtMost(_)) => Some(max_heat_rate_of(state)),
+        Some(HeatRate::AtMost(_)) => Some(max_heat_rate_of(state, particles)),
         None => Some(max_stiffness(
             model, walls, periodic, particles, list, state,
         )),
@@ -1024,17 +1191,14 @@ pub fn advance(
     let dt_sub = dt / f64::from(substeps);
     for substep in 0..substeps {
         if substep > 0 {
-            let (reads, stored, sums) = state.flow_pass_parts();
+            let (reads, stored, sums) = state.flow_pass_parts(&particles.mass);
             let conductances = SlotConductances::Stored(stored);
             heat_flows(model, walls, particles, list, reads, conductances, sums);
         }
         let ThermalState {
             enthalpy,
             temperature,
-            heat_capacity,
-            melting_point,
-            latent_heat,
-            one_material,
+            materials,
             evaporation,
             melted,
             heat_sums,
@@ -1042,7 +1206,7 @@ pub fn advance(
             boundary,
             ..
         } = state;
-        let mass = &particles.mass;
+        let materials = materials.reads(&particles.mass);
         // Each energy accumulator costs two more streams, paid only where the scene has its
         // source.
         let (laser_power, laser_energy) = laser
@@ -1067,17 +1231,7 @@ pub fn advance(
         let set = crate::simd::InstructionSet::detect();
         let update = |c: usize, (((e, t), m), (accumulated, evaporated)): Chunk<'_>| {
             let particles = c * PARTICLES_PER_ITEM..c * PARTICLES_PER_ITEM + e.len();
-            let material = match *one_material {
-                Some(constants) => ChunkMaterials::One {
-                    mass: &mass[particles.clone()],
-                    constants,
-                },
-                None => ChunkMaterials::Columns {
-                    heat_capacity: &heat_capacity[particles.clone()],
-                    melting_point: &melting_point[particles.clone()],
-                    latent_heat: &latent_heat[particles.clone()],
-                },
-            };
+            let material = materials.cut(particles.clone());
             let flows = &heat_sums[particles.clone()];
             crate::simd::dispatch(
                 set,
@@ -1127,15 +1281,22 @@ fn accumulate(
 }
 
 /// The largest `G_i / C_i` [1/s] (M.49) of the heat sums as they stand, on the thread team for
-/// a large state (exact in any order, as [`crate::team::largest`] says).
+/// a large state (exact in any order, as [`crate::team::largest`] says); `particles` are the
+/// state's own.
 #[must_use]
-pub fn max_heat_rate_of(state: &ThermalState) -> f64 {
+pub fn max_heat_rate_of(state: &ThermalState, particles: &Particles) -> f64 {
     let parallel = crate::worth_parallel(state.heat_sums.len());
-    crate::team::largest(
-        parallel,
-        (&state.heat_sums, &state.heat_capacity),
-        heat_rate,
-    )
+    let sums = &state.heat_sums;
+    match state.materials.reads(&particles.mass) {
+        MaterialReads::One { mass, constants } => {
+            let c = constants.specific_heat;
+            let rate = |s: &HeatSums, m: &f64| heat_rate(s, &(m * c));
+            crate::team::largest(parallel, (sums, mass), rate)
+        }
+        MaterialReads::Columns { heat_capacity, .. } => {
+            crate::team::largest(parallel, (sums, heat_capacity), heat_rate)
+        }
+    }
 }
 
 /// Net heat flow into every particle at the current temperatures \[W\] and its total conductance
@@ -1154,7 +1315,7 @@ fn heat_flows(
     let _pass = crate::team::PassName::enter("heat flows");
     let FlowReads {
         temperature,
-        heat_capacity,
+        materials,
         laser_power,
     } = reads;
     let FlowSums {
@@ -1192,7 +1353,7 @@ fn heat_flows(
             // (Without a laser its power is +0, as the arrays once held.)
             s.flow += outside + laser_power.map_or(0.0, |p| p[k]);
             s.conductance += outside_conductance;
-            worst = worst.max(heat_rate(s, &heat_capacity[k]));
+            worst = worst.max(heat_rate(s, &materials.heat_capacity(k)));
         }
         worst
     };
@@ -1305,8 +1466,9 @@ mod tests {
         let state = ThermalState::new(&model, &particles, false);
         let evaporation = state.evaporation.as_ref().expect("one material boils");
         for k in 0..4 {
+            let constants = state.heat_constants(&particles, k);
             let expected = if particles.material[k] == 1 {
-                state.heat_capacity[k] * 3090.0 + state.latent_heat[k]
+                constants.heat_capacity * 3090.0 + constants.latent_heat
             } else {
                 f64::INFINITY
             };
@@ -1365,10 +1527,12 @@ mod tests {
         assert!(!model.is_inert(&melted));
     }
 
-    /// A scene of one material updates its temperatures from the masses and the material's
-    /// constants, a scene of several from the columns: for one material both give the same
-    /// enthalpies, temperatures, melt flags and evaporated heats to the bit, in every vector
-    /// build, on particles of many sizes heated across the melting plateau and past boiling.
+    /// A scene of one material reads its constants from the masses and the material, a scene
+    /// of several from the columns: for one material (the columns those of a model whose two
+    /// materials are the same) both give the same enthalpies, temperatures, melt flags and
+    /// evaporated heats to the bit, in every vector build, on particles of many sizes heated
+    /// across the melting plateau and past boiling; and the same largest `G_i / C_i`, smallest
+    /// `C_i` and each particle's constants.
     #[test]
     fn a_one_material_update_matches_the_columns_to_the_bit() {
         use crate::particles::ParticleInit;
@@ -1398,32 +1562,55 @@ mod tests {
                 particles.push(init, 7950.0);
             }
             let mut state = ThermalState::new(&model, &particles, false);
-            let constants = state.one_material.expect("one material");
+            let HeatMaterials::One(constants) = state.materials else {
+                panic!("one material without its constants")
+            };
+            let twice = ThermalModel::bare(vec![model.materials[0]; 2], model.conduction);
+            let columns = HeatMaterials::of(&twice, &particles);
+            let column_reads = columns.reads(&particles.mass);
+            assert!(matches!(column_reads, MaterialReads::Columns { .. }));
             for k in 0..n {
                 // From 300 K to 3300 K, past the plateau and the boiling point.
                 #[allow(clippy::cast_precision_loss)]
-                state.set_temperature(k, 1800.0 + 1500.0 * (k as f64 * 1.37).cos());
+                state.set_temperature(&particles, k, 1800.0 + 1500.0 * (k as f64 * 1.37).cos());
                 // Flows that move a particle by up to some 400 K in one step of 1e-6 s.
                 #[allow(clippy::cast_precision_loss)]
-                let flow = 4e8 * state.heat_capacity[k] * (k as f64 * 0.29).sin();
-                state.heat_sums[k] = HeatSums::default().add(flow, 0.0);
+                let flow = 4e8 * column_reads.heat_capacity(k) * (k as f64 * 0.29).sin();
+                #[allow(clippy::cast_precision_loss)]
+                let conductance = 1e-4 * (1.0 + (k as f64 * 0.83).cos());
+                state.heat_sums[k] = HeatSums::default().add(flow, conductance);
+                let bits = |(c, t, l): (f64, f64, f64)| [c, t, l].map(f64::to_bits);
+                assert_eq!(
+                    bits(column_reads.at(k)),
+                    bits(state.materials.reads(&particles.mass).at(k))
+                );
             }
+            let smallest =
+                [&columns, &state.materials].map(|m| m.smallest_capacity(&particles.mass));
+            assert_eq!(smallest[0].to_bits(), smallest[1].to_bits());
+            let mut with_columns = state.clone();
+            with_columns.materials = columns.clone();
+            assert_eq!(
+                max_heat_rate_of(&with_columns, &particles).to_bits(),
+                max_heat_rate_of(&state, &particles).to_bits()
+            );
+            let MaterialReads::Columns { heat_capacity, .. } = column_reads else {
+                unreachable!()
+            };
+            assert_eq!(
+                max_heat_rate(&state.heat_sums, heat_capacity).to_bits(),
+                max_heat_rate_of_masses(&state.heat_sums, &particles.mass, constants.specific_heat)
+                    .to_bits()
+            );
             let mut crossed = 0;
             for set in InstructionSet::available() {
                 let mut from_columns = state.clone();
                 let mut from_masses = state.clone();
                 for (updated, materials) in [
-                    (
-                        &mut from_columns,
-                        ChunkMaterials::Columns {
-                            heat_capacity: &state.heat_capacity,
-                            melting_point: &state.melting_point,
-                            latent_heat: &state.latent_heat,
-                        },
-                    ),
+                    (&mut from_columns, column_reads),
                     (
                         &mut from_masses,
-                        ChunkMaterials::One {
+                        MaterialReads::One {
                             mass: &particles.mass,
                             constants,
                         },
@@ -1459,13 +1646,12 @@ mod tests {
             }
             assert!(crossed > 0, "no particle melted in the update");
         }
-        // Several materials keep the columns.
+        // One material keeps no column; several keep one each.
+        let one = ThermalModel::bare(vec![steel_like(None)], ConductionModel::BatchelorObrien);
         let two = ThermalModel::bare(vec![steel_like(None); 2], ConductionModel::BatchelorObrien);
-        assert!(
-            ThermalState::new(&two, &Particles::default(), false)
-                .one_material
-                .is_none()
-        );
+        let state = |model| ThermalState::new(model, &Particles::default(), false).materials;
+        assert!(matches!(state(&one), HeatMaterials::One(_)));
+        assert!(matches!(state(&two), HeatMaterials::Columns { .. }));
     }
 
     #[test]
