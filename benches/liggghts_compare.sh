@@ -4,7 +4,9 @@
 # skin 9 µm): the two programs alternate, several repetitions, medians and ratios of
 # particle-steps per second per core, at each thread count, and the median and range of the
 # ratios within a repetition (the two programs back to back: on a host whose speed drifts from
-# minute to minute, the steadier reading). LIGGGHTS times 5000 steps (2000 on the
+# minute to minute, the steadier reading). The speed-up of the most threads over the fewest and
+# heat's cost are printed both from the medians and repetition by repetition (the variants of one
+# repetition run minutes apart, where the medians may pair a fast minute with a slow one). LIGGGHTS times 5000 steps (2000 on the
 # 97.2k bed) after a 500-step warm-up (its second "Loop time"); am-sim is timed over the same
 # steps, 501-5500 (501-2500), by the wall times of its series rows at steps 500 and 5500 (2500),
 # which include its checks at the outputs in that window. Until the forty-eighth round am-sim was
@@ -151,6 +153,15 @@ for line in open(sys.argv[1]):
     if prog == "am-sim":
         whole[(size, int(heat), int(threads))].append(float(fields[8].rstrip(")")) / float(per_core))
 median = lambda key: statistics.median(runs[key])
+
+
+def per_repetition(a, b, ratio, form=".2f"):
+    """The ratio of two variants' runs of the same repetition (minutes apart, where the ratio of
+    the medians may pair a fast minute with a slow one): the median, then each repetition's in
+    order (the cores' distances below are in the same order)."""
+    values = [ratio(x, y) for x, y in zip(runs[a], runs[b])]
+    return (f"by repetition {statistics.median(values):{form}}"
+            f" ({', '.join(f'{v:{form}}' for v in values)})")
 print("\nparticle-steps per second per core (medians of %d runs)" % len(next(iter(runs.values()))))
 # Each repetition runs the two programs back to back, so the ratio within a repetition is less
 # touched by the host's drift from minute to minute than the ratio of the two medians, which
@@ -171,7 +182,8 @@ for s, h in sorted({(s, h) for s, h, _ in keys}, key=lambda k: (len(k[0]), k)):
         t0, t1 = threads[0], threads[-1]
         for prog in ("liggghts", "am-sim"):
             speedup = median((prog, s, h, t1)) * t1 / (median((prog, s, h, t0)) * t0)
-            print(f"bed {s}, heat {h}: {prog} {t1} threads vs {t0}: {speedup:.2f}x")
+            each = per_repetition((prog, s, h, t1), (prog, s, h, t0), lambda a, b: a * t1 / (b * t0))
+            print(f"bed {s}, heat {h}: {prog} {t1} threads vs {t0}: {speedup:.2f}x; {each}x")
 apart = collections.defaultdict(list)
 for line in open(sys.argv[2]):
     prog, s, h, t, ns = line.split()
@@ -183,5 +195,7 @@ for s, t in sorted({(s, t) for s, _, t in keys}, key=lambda k: (len(k[0]), k)):
     if (s, 0, t) in keys and (s, 1, t) in keys:
         for prog in ("liggghts", "am-sim"):
             cost = median((prog, s, 0, t)) / median((prog, s, 1, t)) - 1.0
-            print(f"bed {s}, {t} thread(s): heat conduction adds {100 * cost:.0f} % to {prog}'s step time")
+            each = per_repetition((prog, s, 0, t), (prog, s, 1, t), lambda a, b: 100 * (a / b - 1.0), "+.0f")
+            print(f"bed {s}, {t} thread(s): heat conduction adds {100 * cost:.0f} % to {prog}'s step time;"
+                  f" {each} %")
 PY
