@@ -5,10 +5,11 @@
 # particle-steps per second per core, at each thread count, and the median and range of the
 # ratios within a repetition (the two programs back to back: on a host whose speed drifts from
 # minute to minute, the steadier reading). The speed-up of the most threads over the fewest and
-# heat's cost are printed both from the medians and repetition by repetition (the variants of one
-# repetition run minutes apart, where the medians may pair a fast minute with a slow one). LIGGGHTS times 5000 steps (2000 on the
-# 97.2k bed) after a 500-step warm-up (its second "Loop time"); am-sim is timed over the same
-# steps, 501-5500 (501-2500), by the wall times of its series rows at steps 500 and 5500 (2500),
+# heat's cost are printed both from the medians and repetition by repetition (the variants of
+# one repetition run minutes apart, where the medians may pair a fast minute with a slow one).
+# LIGGGHTS times 5000 steps (2000 on the 97.2k bed) after a 500-step warm-up (its second "Loop
+# time"); am-sim is timed over the same steps, 501-5500 (501-2500), by the wall times of its
+# series rows at steps 500 and 5500 (2500),
 # which include its checks at the outputs in that window. Until the forty-eighth round am-sim was
 # timed over its whole run loop of 500 + 5000 steps, warm-up included (its bed holds fewer
 # contacts then than at the window's end): 0.98-1.05 times the window's figure, printed at the

@@ -165,7 +165,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
             let rate = match h.materials {
                 MaterialReads::One { mass, constants } => sums.inspect_chunk_beside(
                     chunk,
-                    (mass, constants.specific_heat()),
+                    (mass, constants),
                     thermal::max_heat_rate_of_masses,
                 ),
                 MaterialReads::Columns { heat_capacity, .. } => sums.inspect_chunk_beside(

@@ -128,10 +128,10 @@ fn the_temperature_update_takes_the_substep_count_of_the_largest_rate_from_any_b
 /// The largest `G_i / C_i` measured once (`thermal::max_stiffness`, as the run's start takes it,
 /// and `max_stiffness_aside`, as the diagnostics take it, to the same bits), and a step of one
 /// substep without the force pass's flows, compute each contact's conductance as they meet the
-/// pair and keep no per-slot array, whose 8 B a pair slot would set a heated bed's peak memory. A step of three substeps stores the conductances for
-/// its second and third flow passes; its temperatures and heat sums are the same to the bit as
-/// those of three steps of a third of its length, each of one substep, which compute every
-/// conductance from the positions.
+/// pair and keep no per-slot array, whose 8 B a pair slot would set a heated bed's peak memory.
+/// A step of three substeps stores the conductances for its second and third flow passes; its
+/// temperatures and heat sums are the same to the bit as those of three steps of a third of its
+/// length, each of one substep, which compute every conductance from the positions.
 #[test]
 fn flow_passes_without_stored_conductances_match_the_stored_ones_to_the_bit() {
     let sim = packed_bed(1.05);

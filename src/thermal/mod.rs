@@ -783,12 +783,16 @@ pub fn max_heat_rate(sums: &[HeatSums], heat_capacity: &[f64]) -> f64 {
     crate::team::largest_in(set, 0.0, (sums, heat_capacity), &heat_rate)
 }
 
-/// [`max_heat_rate`] of particles of one material, of masses `mass` \[kg\] and specific heat
-/// `specific_heat` [J/(kg·K)]: each `C_i = m_i c` made as [`HeatMaterials::One`] makes it.
+/// [`max_heat_rate`] of particles of masses `mass` \[kg\] of one material, `constants`: each
+/// `C_i = m_i c` made as [`HeatMaterials::One`] makes it.
 #[must_use]
-pub fn max_heat_rate_of_masses(sums: &[HeatSums], mass: &[f64], specific_heat: f64) -> f64 {
+pub fn max_heat_rate_of_masses(
+    sums: &[HeatSums],
+    mass: &[f64],
+    constants: MaterialConstants,
+) -> f64 {
     let set = crate::simd::InstructionSet::detect();
-    let rate = |s: &HeatSums, m: &f64| heat_rate(s, &(m * specific_heat));
+    let rate = |s: &HeatSums, m: &f64| heat_rate(s, &constants.heat_capacity(*m));
     crate::team::largest_in(set, 0.0, (sums, mass), &rate)
 }
 
@@ -822,8 +826,11 @@ pub struct MaterialConstants {
 
 impl MaterialConstants {
     /// Specific heat c [J/(kg·K)].
-    pub(crate) fn specific_heat(self) -> f64 {
-        self.specific_heat
+    /// The heat capacity `C = m c` [J/K] of a particle of mass `mass` \[kg\] (M.48): the one
+    /// product every reader makes, so that they agree to the bit.
+    #[inline(always)]
+    fn heat_capacity(self, mass: f64) -> f64 {
+        mass * self.specific_heat
     }
 }
 
@@ -879,16 +886,16 @@ impl HeatMaterials {
         if let [material] = model.materials.as_slice() {
             return Self::One(constants(material));
         }
-        let each: Vec<_> = (0..particles.len())
-            .map(|k| {
-                let c = constants(&model.materials[usize::from(particles.material[k])]);
-                OneAt(&particles.mass[k..=k], c).at(0)
-            })
-            .collect();
+        // Each particle's as one material's would be.
+        let at = |k: usize| {
+            let material = &model.materials[usize::from(particles.material[k])];
+            OneAt(&particles.mass, constants(material)).at(k)
+        };
+        let n = particles.len();
         Self::Columns {
-            heat_capacity: each.iter().map(|e| e.0).collect(),
-            melting_point: each.iter().map(|e| e.1).collect(),
-            latent_heat: each.iter().map(|e| e.2).collect(),
+            heat_capacity: (0..n).map(|k| at(k).0).collect(),
+            melting_point: (0..n).map(|k| at(k).1).collect(),
+            latent_heat: (0..n).map(|k| at(k).2).collect(),
         }
     }
 
@@ -931,7 +938,7 @@ impl HeatMaterials {
     /// bit: rounding keeps the order of the products of one positive factor.
     fn smallest_capacity(&self, mass: &[f64]) -> f64 {
         match self {
-            Self::One(constants) => smallest(mass) * constants.specific_heat,
+            Self::One(constants) => constants.heat_capacity(smallest(mass)),
             Self::Columns { heat_capacity, .. } => smallest(heat_capacity),
         }
     }
@@ -1020,7 +1027,7 @@ impl MaterialAt for OneAt<'_> {
     fn at(&self, i: usize) -> (f64, f64, f64) {
         let (mass, constants) = (self.0[i], self.1);
         (
-            mass * constants.specific_heat,
+            constants.heat_capacity(mass),
             constants.melting_point,
             mass * constants.latent_heat,
         )
@@ -1289,8 +1296,7 @@ pub fn max_heat_rate_of(state: &ThermalState, particles: &Particles) -> f64 {
     let sums = &state.heat_sums;
     match state.materials.reads(&particles.mass) {
         MaterialReads::One { mass, constants } => {
-            let c = constants.specific_heat;
-            let rate = |s: &HeatSums, m: &f64| heat_rate(s, &(m * c));
+            let rate = |s: &HeatSums, m: &f64| heat_rate(s, &constants.heat_capacity(*m));
             crate::team::largest(parallel, (sums, mass), rate)
         }
         MaterialReads::Columns { heat_capacity, .. } => {
@@ -1599,8 +1605,7 @@ mod tests {
             };
             assert_eq!(
                 max_heat_rate(&state.heat_sums, heat_capacity).to_bits(),
-                max_heat_rate_of_masses(&state.heat_sums, &particles.mass, constants.specific_heat)
-                    .to_bits()
+                max_heat_rate_of_masses(&state.heat_sums, &particles.mass, constants).to_bits()
             );
             let mut crossed = 0;
             for set in InstructionSet::available() {
