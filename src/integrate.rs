@@ -16,12 +16,10 @@ use crate::contact::rolling;
 use crate::particles::{Particles, Rotation};
 use crate::simd::{InstructionSet, Kernel, Largest, dispatch, fold_lanes};
 use crate::team::{PARTICLES_PER_ITEM as CHUNK, optional_items};
-use crate::thermal::HeatSums;
 
 /// The per-particle sums the force pass adds into besides the forces and torques (with
-/// `[thermal]`: the heat flows \[W\] and the total conductances \[W/K\]), which [`kick_drift`]
-/// leaves at zero with them.
-pub type Sums<'a> = Option<&'a mut [HeatSums]>;
+/// `[thermal]`: the net heat flows \[W\]), which [`kick_drift`] leaves at zero with them.
+pub type Sums<'a> = Option<&'a mut [f64]>;
 
 /// The opening half of a step, in one pass over the particles: the half kick and the drift
 /// (M.30, M.31) and, with rotation, the half kick of ω (M.62). The half kick is the last reader
@@ -100,7 +98,7 @@ pub fn kick_drift(
                 torque.fill(DVec3::ZERO);
             }
             if let Some(sums) = sums {
-                sums.fill(HeatSums::default());
+                sums.fill(0.0);
             }
             max_speed_squared
         },
@@ -856,12 +854,7 @@ mod tests {
             for far in [3, count - 2] {
                 let (mut particles, mut rotation) = row(count);
                 let dt = 0.5;
-                let mut heat_sums: Vec<HeatSums> = (0..count)
-                    .map(|k| HeatSums {
-                        flow: k as f64 + 1.0,
-                        conductance: k as f64 + 1.0,
-                    })
-                    .collect();
+                let mut heat_sums: Vec<f64> = (0..count).map(|k| k as f64 + 1.0).collect();
                 let sums = Some(heat_sums.as_mut_slice());
                 let gravity = DVec3::new(0.0, 0.0, -2.0);
                 let drift = kick_drift(
@@ -889,7 +882,7 @@ mod tests {
                 // torques at zero.
                 assert!(particles.force.iter().all(|f| *f == gravity));
                 assert!(rotation.torque.iter().all(|t| *t == DVec3::ZERO));
-                assert!(heat_sums.iter().all(|s| *s == HeatSums::default()));
+                assert!(heat_sums.iter().all(|s| s.to_bits() == 0));
                 // A force pass fills them again; the closing kick: v_z and ω grow by as much.
                 let (refilled, _) = row(count);
                 particles.force.clone_from(&refilled.force);

@@ -96,6 +96,9 @@ pub struct NeighborList {
     reference_positions: Vec<DVec3>,
     skin: f64,
     periodic: Option<Periodic>,
+    /// The most slots any one particle is in, as owner or partner: no particle touches more
+    /// particles than this until the next build ([`NeighborList::max_degree`]).
+    max_degree: usize,
     /// Number of builds so far.
     pub builds: u64,
     /// Names the current build's slot numbering for [`NearPairs`] (0 before the first build).
@@ -657,6 +660,7 @@ impl NeighborList {
             })
             .collect();
         self.slab_of = slab_of;
+        self.max_degree = self.largest_degree();
         // The pair passes write to partners without checking each write (`scatter`): this is
         // the proof they rely on, one pass over the slots per build.
         assert!(
@@ -704,6 +708,26 @@ impl NeighborList {
                     s == slab || s == successor
                 })
         })
+    }
+
+    /// The most slots any one particle is in, as owner or partner (0 before the first build).
+    /// Every pair in contact is in a slot until the next build, so no particle has more
+    /// contacts than this: with the largest conductance of a contact it bounds a particle's
+    /// total conductance (`thermal::HeatRate::at_most`).
+    #[must_use]
+    pub fn max_degree(&self) -> usize {
+        self.max_degree
+    }
+
+    /// [`Self::max_degree`] counted over the slots: each owner's slots, and each partner's
+    /// appearances. Made at the end of a build, once the build's own temporaries are gone, so
+    /// that its 4 B a particle do not add to the build's peak.
+    fn largest_degree(&self) -> usize {
+        let mut degree: Vec<u32> = self.offsets.windows(2).map(|w| w[1] - w[0]).collect();
+        for &partner in &self.partners {
+            degree[partner as usize] += 1;
+        }
+        degree.into_iter().max().map_or(0, |d| d as usize)
     }
 
     /// Number of pair slots.

@@ -453,25 +453,28 @@ fn an_isolated_bed_conserves_its_heat() {
     assert!(t.heat_residual.abs() < 1e-10, "{}", t.heat_residual);
 }
 
-/// The run's largest `G_i / C_i` (M.49), which sets the thermal substeps, is the largest over
-/// every particle when heat flows only through contacts: the particle pass then visits only the
-/// spheres near a wall, the step's substep count comes from a bound (the largest G_i over the
-/// smallest C_i), and the diagnostics take the rate from the step's heat sums.
+/// The run's largest `G_i / C_i` (M.49), which sets the thermal substeps and which the
+/// diagnostics report as `dt / τ`, is the largest over every particle, each G_i summed here
+/// afresh from every pair of spheres that overlap (not from the neighbour list) and the gas.
 /// A packed cube of 1000 spheres in the column's box, each pressed a little into its six
-/// neighbours: the inner ones hold the most contacts, and none of them is near a wall. The run's
-/// ratio dt · max G/C must equal dt over the smallest time constant computed afresh from the
-/// state (`Simulation::smallest_thermal_time_constant`), to rounding (the two sum a particle's
-/// conductances in other orders). The same with convection, where the pass visits every
-/// particle and adds its exchange to the sums before the chunk's largest is taken.
+/// neighbours: the inner ones hold the most contacts, and none of them is near a wall. The
+/// force pass only bounds the rate (`thermal::HeatRate::at_most`), which asks for one substep
+/// here, and the diagnostics measure it. They agree to rounding (1e-12 relative: the two sum a
+/// particle's conductances in other orders). The same with convection, whose `h A_i` adds to
+/// every G_i.
 #[test]
 fn the_largest_heat_rate_of_a_step_is_that_of_every_particle() {
     let packed = common::conducting::packed_cube("1e-4");
+    let h = 1e4;
     let convected = packed.replace(
         "[output]",
-        "[thermal.convection]\nheat_transfer_coefficient_w_m2_k = 10\ngas_temperature_k = 300\n[output]",
+        &format!(
+            "[thermal.convection]\nheat_transfer_coefficient_w_m2_k = {h}\n\
+             gas_temperature_k = 300\n[output]"
+        ),
     );
     assert_ne!(convected, packed);
-    for text in [packed, convected] {
+    for (text, gas) in [(packed, 0.0), (convected, h)] {
         let mut sim = common::simulation(&text);
         assert_eq!(sim.particles.len(), 1000);
         for _ in 0..5 {
@@ -479,14 +482,40 @@ fn the_largest_heat_rate_of_a_step_is_that_of_every_particle() {
         }
         let d = sim.diagnostics();
         assert!(d.contacts > 2500, "{} contacts", d.contacts);
-        let ratio = d.thermal.expect("[thermal]").time_step_ratio;
-        let tau = sim.smallest_thermal_time_constant().expect("[thermal]");
-        let expected = sim.model.dt / tau;
-        assert!(expected > 0.0);
+        let thermal = d.thermal.expect("[thermal]");
+        assert_eq!(thermal.substeps, 1);
+        let model = sim.model.thermal.as_ref().expect("[thermal]");
+        let p = &sim.particles;
+        let n = p.len();
+        let mut total: Vec<f64> = (0..n).map(|k| gas * sphere_area(p.radius[k])).collect();
+        for a in 0..n {
+            for b in a + 1..n {
+                let overlap = p.radius[a] + p.radius[b] - p.position[a].distance(p.position[b]);
+                if overlap > 0.0 {
+                    let effective = p.radius[a] * p.radius[b] / (p.radius[a] + p.radius[b]);
+                    let contact = am_sim::thermal::conduction::contact_radius(effective, overlap);
+                    let radii = [p.radius[a], p.radius[b]];
+                    let materials = [p.material[a], p.material[b]];
+                    let conductance = am_sim::thermal::pair_conductance(
+                        model, materials, radii, overlap, contact,
+                    );
+                    total[a] += conductance;
+                    total[b] += conductance;
+                }
+            }
+        }
+        let c = model.materials[0].specific_heat;
+        let largest = (0..n)
+            .map(|k| total[k] / (p.mass[k] * c))
+            .fold(0.0, f64::max);
+        let reported = thermal.time_step_ratio / sim.model.dt;
+        assert!(largest > 0.0);
         assert!(
-            (ratio / expected - 1.0).abs() < 1e-12,
-            "{ratio:e} against dt/tau {expected:e}"
+            (reported / largest - 1.0).abs() < 1e-12,
+            "{reported:e} against {largest:e}"
         );
+        let tau = sim.smallest_thermal_time_constant().expect("[thermal]");
+        assert!((tau * largest - 1.0).abs() < 1e-12);
     }
 }
 

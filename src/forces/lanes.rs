@@ -195,11 +195,13 @@ pub(super) struct ContactLanes {
     torque_on_b: Lane3,
     spring_history: Lane3,
     spring_energy: Lane<f64>,
-    // With conduction: the material pair's conductivities (input) and the contact's
-    // conductance [W/K] (output of `run_conductances`).
+    // With conduction: the material pair's conductivities (input), the contact's conductance
+    // [W/K] and that over the smaller mass of the pair [W/(K·kg)] (outputs of
+    // `run_conductances`).
     harmonic_conductivity: Lane<f64>,
     conductivity: [Lane<f64>; 2],
     conductance: Lane<f64>,
+    conductance_per_mass: Lane<f64>,
     /// Every lane holds the same material parameters, put there by [`Self::for_model`]: the
     /// model has one material (and its conductivities, with a thermal model). [`Self::set`]
     /// and [`Self::set_conductivities`] then leave them.
@@ -392,6 +394,14 @@ impl ContactLanes {
     #[inline(always)]
     pub(super) fn conductance(&self, i: usize) -> f64 {
         self.conductance[i]
+    }
+
+    /// The conductance of lane `i`'s contact over the smaller mass of its pair, `H / min(m_a,
+    /// m_b)` [W/(K·kg)] (after [`Self::run_conductances`]): the largest of these bounds the
+    /// step's heat rates (`thermal::HeatRate::at_most`).
+    #[inline(always)]
+    pub(super) fn conductance_per_mass(&self, i: usize) -> f64 {
+        self.conductance_per_mass[i]
     }
 
     /// Every lane's contact conductance by the conduction model (M.41, M.42, M.79) from what
@@ -661,13 +671,19 @@ impl ConductanceKernel<'_> {
                 harmonic: lanes.harmonic_conductivity[i],
                 each: [lanes.conductivity[0][i], lanes.conductivity[1][i]],
             };
-            lanes.conductance[i] = thermal::contact_conductance(
+            let conductance = thermal::contact_conductance(
                 conduction,
                 k,
                 [lanes.radius[0][i], lanes.radius[1][i]],
                 lanes.overlap[i],
                 lanes.contact_radius[i],
             );
+            lanes.conductance[i] = conductance;
+            // On vectors here, with the conductance: the write-back takes only the largest.
+            // (`<` rather than `f64::min`, which orders NaN with more instructions: no mass is
+            // NaN.)
+            let [m_a, m_b] = [lanes.mass[0][i], lanes.mass[1][i]];
+            lanes.conductance_per_mass[i] = conductance / if m_a < m_b { m_a } else { m_b };
         }
     }
 }

@@ -31,7 +31,7 @@ use crate::pair_history::TangentialHistories;
 use crate::particles::{Particles, Rotation};
 use crate::periodic::Periodic;
 use crate::scatter::{OpenedReads, ParticleTokens, Scatter};
-use crate::thermal::{HeatMaterials, HeatSums, ThermalModel};
+use crate::thermal::{HeatMaterials, HeatRateBound, ThermalModel};
 use crate::wall_history::WallKey;
 
 mod lanes;
@@ -225,8 +225,12 @@ pub struct PassHeat<'a> {
     pub laser_power: Option<&'a [f64]>,
     /// Where the heat capacities come from.
     pub materials: &'a HeatMaterials,
-    /// Out: net heat flow \[W\] and total conductance G_i [W/K].
-    pub sums: &'a mut [HeatSums],
+    /// Out: net heat flow \[W\].
+    pub sums: &'a mut [f64],
+    /// Out, at a step whose largest heat rate is taken (an output's): each particle's total
+    /// conductance G_i [W/K] (M.49), added into (zero it first). `None` at the other steps,
+    /// which only bound the rate (`ForceSummary::heat_rate_bound`).
+    pub totals: Option<&'a mut [f64]>,
     /// Out: heat flow from walls, gas and surroundings \[W\], where the model exchanges heat
     /// with them.
     pub boundary_flow: Option<&'a mut [f64]>,
@@ -406,7 +410,7 @@ pub fn compute(
         fill(&mut r.torque, DVec3::ZERO, parallel);
     }
     if let Some(h) = heat.as_mut().filter(|_| !cleared) {
-        fill(h.sums, HeatSums::default(), parallel);
+        fill(h.sums, 0.0, parallel);
     }
     let pairs = {
         let state = &*particles;
@@ -422,6 +426,7 @@ pub fn compute(
             melted: h.melted,
             temperature: h.temperature,
             sums: Scatter::new(h.sums),
+            totals: h.totals.as_deref_mut().map(Scatter::new),
         });
         let targets = PairTargets {
             force: Scatter::new(&mut forces),
@@ -599,16 +604,11 @@ pub(crate) fn plane_overlap(wall: &Wall, position: DVec3, radius: f64) -> f64 {
 /// index on ties): the inputs of the run's per-step guards (docs/stability.md).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ForceSummary {
-    /// `max G_i / C_i` [1/s] (M.49), where the pass took it: with `[thermal]` and a laser or a
-    /// boundary exchange, whose particle pass finishes every particle's heat sums and takes
-    /// their largest at each chunk's end while they are at hand. `None` otherwise.
-    pub max_heat_rate: Option<f64>,
-    /// `max G_i` [W/K] (M.49) over the sums the pair pass left, 0 without `[thermal]`. Every
-    /// G_i starts the pass at 0 and only grows as contacts add their conductances (H ≥ 0), so
-    /// the largest value any addition leaves is the largest G_i. With the smallest heat
-    /// capacity it bounds `max G_i / C_i` for the step's substep count
-    /// ([`crate::thermal::HeatRate`]) without a pass over the sums of its own.
-    pub max_conductance: f64,
+    /// With `[thermal]`: the largest conductance per mass of a contact, and the largest rate
+    /// of the exchange with walls, gas and surroundings, which bound `max G_i / C_i` for the
+    /// step's substep count ([`crate::thermal::HeatRate::at_most`]) without summing any
+    /// particle's G_i. Zero without.
+    pub heat_rate_bound: HeatRateBound,
     /// Largest overlap of any contact relative to the smaller radius of its pair (the
     /// particle's radius, against a wall).
     pub max_overlap_ratio: f64,
@@ -666,11 +666,7 @@ impl ForceSummary {
     #[must_use]
     fn merge(mut self, other: Self) -> Self {
         self.observe_overlap(other.max_overlap_ratio, other.max_overlap_particle);
-        self.max_heat_rate = match (self.max_heat_rate, other.max_heat_rate) {
-            (Some(a), Some(b)) => Some(a.max(b)),
-            (rate, None) | (None, rate) => rate,
-        };
-        self.max_conductance = self.max_conductance.max(other.max_conductance);
+        self.heat_rate_bound = self.heat_rate_bound.merge(other.heat_rate_bound);
         self.pair_contacts += other.pair_contacts;
         self.first_non_finite_force = crate::integrate::lowest_particle(
             self.first_non_finite_force,

@@ -26,7 +26,7 @@ use crate::scatter::{
     Member, NearTokens, Opened, OpenedReads, PerParticle, PerSlot, Scatter, SlabVisit, Slot, Window,
 };
 use crate::simd::InstructionSet;
-use crate::thermal::{HeatSums, ThermalModel};
+use crate::thermal::ThermalModel;
 
 /// What the pair pass writes, shared by the concurrent slabs of a colour phase.
 pub(super) struct PairTargets<'a> {
@@ -44,7 +44,9 @@ pub(super) struct HeatTargets<'a> {
     pub(super) model: &'a ThermalModel,
     pub(super) melted: &'a [bool],
     pub(super) temperature: &'a [f64],
-    pub(super) sums: Scatter<'a, HeatSums, PerParticle>,
+    pub(super) sums: Scatter<'a, f64, PerParticle>,
+    /// At a step whose largest heat rate is taken: each particle's total conductance G_i.
+    pub(super) totals: Option<Scatter<'a, f64, PerParticle>>,
 }
 
 impl PairTargets<'_> {
@@ -78,6 +80,7 @@ impl PairTargets<'_> {
                 melted: OpenedReads::open(h.melted, visit),
                 temperature: OpenedReads::open(h.temperature, visit),
                 sums: h.sums.open(visit),
+                totals: h.totals.as_ref().map(|t| t.open(visit)),
             }),
         }
     }
@@ -99,7 +102,8 @@ struct OpenHeat<'t, 'v> {
     model: &'t ThermalModel,
     melted: OpenedReads<'t, 'v, bool>,
     temperature: OpenedReads<'t, 'v, f64>,
-    sums: Opened<'t, 'v, HeatSums, PerParticle>,
+    sums: Opened<'t, 'v, f64, PerParticle>,
+    totals: Option<Opened<'t, 'v, f64, PerParticle>>,
 }
 
 /// The pair pass over every slab, compiled for one combination of optional physics: bond
@@ -472,6 +476,38 @@ impl<'r, 's> Batch<'r, 's> {
     }
 }
 
+/// [`write_lanes_with`], then at a step whose largest heat rate is taken (`PassHeat::totals`)
+/// each contact's conductance added to both particles' total conductances G_i, in a loop of its
+/// own: the other steps' write-back holds nothing more, and tests nothing more per contact.
+#[inline]
+fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+    model: &Model,
+    reads: ParticleReads<'_, 's>,
+    targets: &OpenTargets<'_, 's>,
+    (lanes, pairs, filled, springs): (&mut ContactLanes, &LanePairs<'s>, usize, &mut Pool),
+    interval: f64,
+    set: InstructionSet,
+    summary: &mut ForceSummary,
+) {
+    write_lanes_with::<BONDS, FRICTION, HEAT>(
+        model,
+        reads,
+        targets,
+        (&mut *lanes, pairs, filled, springs),
+        interval,
+        set,
+        summary,
+    );
+    let totals = targets.heat.as_ref().filter(|_| HEAT);
+    if let Some(totals) = totals.and_then(|h| h.totals.as_ref()) {
+        for (lane, pair) in pairs.first(filled).enumerate() {
+            let conductance = lanes.conductance(lane);
+            totals.update(pair.owner, |g| g + conductance);
+            totals.update(pair.partner, |g| g + conductance);
+        }
+    }
+}
+
 /// Runs the laws of the filled `lanes`, whose pairs are `pairs` (one per filled lane), over
 /// `interval` \[s\], and writes their results back lane by lane, in the order the pairs were
 /// found: each contact's shares to both particles at once, the owner's and then the partner's,
@@ -479,8 +515,8 @@ impl<'r, 's> Batch<'r, 's> {
 /// new spring appended to the visit's `springs`. A function of the lanes, their pairs and the
 /// springs rather than of the batch, so that the fill ([`handle_kept`]) keeps the pairs and
 /// the springs' cursor in hand across a flush.
-#[inline]
-fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
+#[inline(always)]
+fn write_lanes_with<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     model: &Model,
     reads: ParticleReads<'_, 's>,
     targets: &OpenTargets<'_, 's>,
@@ -516,7 +552,7 @@ fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
     // Room for the round's springs, made only where the pass has friction (`None` known at
     // compile time without it, as `torque`).
     let mut room = FRICTION.then(|| springs.room(filled));
-    let mut max_conductance = summary.max_conductance;
+    let mut max_conductance_per_mass = summary.heat_rate_bound.contact_conductance_per_mass;
     for (lane, pair) in pairs.first(filled).enumerate() {
         let LanePair {
             owner,
@@ -552,27 +588,21 @@ fn write_lanes<'s, const BONDS: bool, const FRICTION: bool, const HEAT: bool>(
         if let Some(h) = heat {
             let conductance = lanes.conductance(lane);
             let flow = conductance * (h.temperature.get(partner) - h.temperature.get(owner));
-            // The largest G_i any addition leaves is the largest G_i (`max_conductance`). A
-            // compare each (`maxsd`), where `f64::max` takes four instructions to order a NaN,
-            // which `>` passes over as `f64::max` does: 14 instructions per contact against 4.
-            let mut add = |particle, flow| {
-                h.sums.update(particle, |s| {
-                    let sums = s.add(flow, conductance);
-                    if sums.conductance > max_conductance {
-                        max_conductance = sums.conductance;
-                    }
-                    sums
-                });
-            };
-            add(owner, flow);
-            add(partner, -flow);
+            h.sums.update(owner, |q| q + flow);
+            h.sums.update(partner, |q| q - flow);
+            // One compare (`maxsd`), where `f64::max` takes four instructions to order a NaN,
+            // which `>` passes over as `f64::max` does.
+            let per_mass = lanes.conductance_per_mass(lane);
+            if per_mass > max_conductance_per_mass {
+                max_conductance_per_mass = per_mass;
+            }
         }
         // The spring last: its pool's bookkeeping then holds no particle index across it.
         if let Some(room) = room.as_mut() {
             room.write(slot, out.spring());
         }
     }
-    summary.max_conductance = max_conductance;
+    summary.heat_rate_bound.contact_conductance_per_mass = max_conductance_per_mass;
 }
 
 /// The spring of `slot`, whose pair came apart: it vanishes with the contact (k_t → 0 as δ → 0),

@@ -26,7 +26,7 @@ use crate::particles::{Particles, Rotation};
 use crate::scatter::{self, Member, Opened, ParticleChunk, PerParticle, Scatter};
 use crate::simd::InstructionSet;
 use crate::team::PARTICLES_PER_ITEM;
-use crate::thermal::{self, BoundaryLanes, HeatSums, MaterialReads, ThermalModel};
+use crate::thermal::{BoundaryLanes, MaterialReads, ThermalModel};
 use crate::wall_history::WallKey;
 
 /// The particle pass: the wall contacts of the wall candidates `walls.0` (normal, and with
@@ -102,6 +102,7 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         laser_power: h.laser_power,
         materials: h.materials.reads(&state.mass),
         sums: Scatter::new(h.sums),
+        totals: h.totals.map(Scatter::new),
         // Decided by the scene: a model without exchange has no flows to add or keep.
         boundary_flow: h.boundary_flow.map(Scatter::new),
     });
@@ -151,30 +152,15 @@ pub(super) fn run<const ROTATION: bool, const HEAT: bool>(
         }
         round.write_back::<ROTATION>(model, (set, interval), &outputs, springs, summary);
         round.finish(&outputs);
-        // Without laser and exchange no particle has heat to add, and the pair pass's largest
-        // G_i bounds the largest G_i / C_i (`ForceSummary::max_conductance`).
+        // Without laser and exchange no particle has heat to add.
         if let Some(h) = heat.filter(|_| every_particle) {
             let mut heat_round = HeatRound::new(h, &model.walls);
             for window in chunk.windows() {
                 heat_round.add(h, state, set, window.owner());
             }
             heat_round.finish(h, set);
-            // The largest G_i / C_i (M.49) of the chunk's finished sums, which the round has
-            // just written: one vector kernel over the chunk while they are in the cache.
-            let sums = h.sums.open_chunk(chunk);
-            let rate = match h.materials {
-                MaterialReads::One { mass, constants } => sums.inspect_chunk_beside(
-                    chunk,
-                    (mass, constants),
-                    thermal::max_heat_rate_of_masses,
-                ),
-                MaterialReads::Columns { heat_capacity, .. } => sums.inspect_chunk_beside(
-                    chunk,
-                    (heat_capacity, ()),
-                    |sums, heat_capacity, ()| thermal::max_heat_rate(sums, heat_capacity),
-                ),
-            };
-            summary.max_heat_rate = Some(summary.max_heat_rate.map_or(rate, |m| m.max(rate)));
+            let bound = &mut summary.heat_rate_bound;
+            bound.boundary_rate = bound.boundary_rate.max(heat_round.max_boundary_rate);
         }
         // The chunk's forces are finished (the walls were the last to add): every particle of
         // its range is tested, visited or not, while the chunk is at hand.
@@ -242,8 +228,10 @@ struct ParticleHeat<'a> {
     temperature: &'a [f64],
     laser_power: Option<&'a [f64]>,
     materials: MaterialReads<'a>,
-    /// Net heat flow \[W\] and total conductance [W/K].
-    sums: Scatter<'a, HeatSums, PerParticle>,
+    /// Net heat flow \[W\].
+    sums: Scatter<'a, f64, PerParticle>,
+    /// At a step whose largest heat rate is taken: total conductance G_i [W/K].
+    totals: Option<Scatter<'a, f64, PerParticle>>,
     /// Heat flow from walls, gas and surroundings \[W\]: `None` without exchange.
     boundary_flow: Option<Scatter<'a, f64, PerParticle>>,
 }
@@ -255,6 +243,10 @@ struct HeatRound<'c> {
     /// `None` without exchange.
     lanes: Option<BoundaryLanes>,
     particles: Vec<Member<'c>>,
+    /// The largest `G_out,i / C_i` [1/s] of the particles finished so far (M.49), 0 without
+    /// exchange: it bounds the step's heat rates with the pair pass's contacts
+    /// (`thermal::HeatRate::at_most`).
+    max_boundary_rate: f64,
 }
 
 impl<'c> HeatRound<'c> {
@@ -265,6 +257,7 @@ impl<'c> HeatRound<'c> {
                 .as_ref()
                 .map(|_| BoundaryLanes::new(heat.model, walls)),
             particles: Vec::with_capacity(LANES),
+            max_boundary_rate: 0.0,
         }
     }
 
@@ -303,20 +296,25 @@ impl<'c> HeatRound<'c> {
         };
         lanes.run(set, heat.model);
         for (i, particle) in self.particles.drain(..).enumerate() {
-            finish_particle(heat, particle, Some(lanes.output(i)));
+            let outside = lanes.output(i);
+            if let Some(totals) = &heat.totals {
+                totals.update(particle, |g| g + outside.1);
+            }
+            let rate = outside.1 / heat.materials.heat_capacity(particle.index());
+            // (`>` passes over a NaN as `f64::max` does, in fewer instructions.)
+            if rate > self.max_boundary_rate {
+                self.max_boundary_rate = rate;
+            }
+            finish_particle(heat, particle, Some(outside));
         }
     }
 }
 
 /// Adds `particle`'s exchange with its boundaries (`outside`: flow \[W\] and conductance
-/// [W/K]) and its laser power to its heat sums (whose `G_i / C_i` the chunk's end takes).
+/// [W/K]) and its laser power to its net heat flow.
 #[inline(always)]
 fn finish_particle(heat: &ParticleHeat<'_>, particle: Member<'_>, outside: Option<(f64, f64)>) {
     let k = particle.index();
-    let mut sums = heat.sums.read(particle);
-    if let Some((_, outside_conductance)) = outside {
-        sums.conductance += outside_conductance;
-    }
     let added = match (outside, heat.laser_power) {
         (Some((outside, _)), Some(laser_power)) => Some(outside + laser_power[k]),
         (Some((outside, _)), None) => Some(outside),
@@ -325,9 +323,8 @@ fn finish_particle(heat: &ParticleHeat<'_>, particle: Member<'_>, outside: Optio
         (None, None) => None,
     };
     if let Some(added) = added {
-        sums.flow += added;
+        heat.sums.update(particle, |q| q + added);
     }
-    heat.sums.update(particle, |_| sums);
     if let (Some((outside, _)), Some(flows)) = (outside, &heat.boundary_flow) {
         flows.update(particle, |_| outside);
     }

@@ -246,13 +246,22 @@ impl Simulation {
                     .fold(f64::NEG_INFINITY, f64::max),
                 melted: t.melted.iter().filter(|m| **m).count(),
                 substeps: t.substeps,
-                // Where the step took no largest G_i / C_i (its bound sufficed), its first
-                // substep's heat sums are still at hand: a step of more substeps took it.
+                // Where the step took no largest G_i / C_i (its bound sufficed), it is
+                // measured here, at the step's positions and its new temperatures. (A
+                // deposition of an inert bed runs without the heat model: nothing flows.)
                 time_step_ratio: self.model.dt
-                    * self
-                        .force_summary
-                        .max_heat_rate
-                        .unwrap_or_else(|| thermal::max_heat_rate_of(t, &self.particles)),
+                    * self.max_heat_rate.unwrap_or_else(|| {
+                        self.model.thermal.as_ref().map_or(0.0, |model| {
+                            thermal::max_stiffness(
+                                model,
+                                &self.model.walls,
+                                self.model.periodic.as_ref(),
+                                &self.particles,
+                                &self.neighbors,
+                                t,
+                            )
+                        })
+                    }),
                 heat_residual: 0.0,
                 stored: stored + self.removed.enthalpy_change,
                 exchanged,
@@ -534,9 +543,9 @@ impl Simulation {
     #[must_use]
     pub fn smallest_thermal_time_constant(&self) -> Option<f64> {
         let model = self.model.thermal.as_ref()?;
-        // Measured aside: measuring must not touch the run's scratch arrays.
+        // Measured aside: `max_stiffness` leaves the state as it was.
         Some(
-            1.0 / thermal::max_stiffness_aside(
+            1.0 / thermal::max_stiffness(
                 model,
                 &self.model.walls,
                 self.model.periodic.as_ref(),

@@ -60,6 +60,10 @@ pub struct Simulation {
     laser_snapshot: laser::Snapshot,
     /// What the last force pass saw (the per-step guards read it).
     force_summary: ForceSummary,
+    /// The largest `G_i / C_i` [1/s] (M.49) at the last step's first substep, where it was
+    /// taken: by the run's start, or by a step whose bound asked for more than one substep
+    /// (`thermal::advance`). `None` where the bound sufficed: the diagnostics then measure it.
+    max_heat_rate: Option<f64>,
     /// The lowest particle whose force was NaN or infinite at the last step's closing kick (or
     /// at the set-up's force pass): the first per-step guard.
     non_finite_force: Option<usize>,
@@ -172,6 +176,7 @@ impl Simulation {
             thermal,
             laser_snapshot: laser::Snapshot::default(),
             force_summary: ForceSummary::default(),
+            max_heat_rate: None,
             non_finite_force: None,
             peak_overlap_ratio: 0.0,
             start: StartEnergies::default(),
@@ -216,7 +221,7 @@ impl Simulation {
             // With a deposition the run starts from the settled bed (`restart_clock`).
             sim.apply_initial_regions();
         }
-        sim.force_summary = sim.compute_forces(Evaluation::SetUp);
+        sim.force_summary = sim.compute_forces(Evaluation::SetUp, None);
         sim.non_finite_force = sim.particles.force.iter().position(|f| !f.is_finite());
         // The t = 0 evaluation did no work over time; the energy the run starts with already
         // counts any bond it formed.
@@ -235,12 +240,8 @@ impl Simulation {
         // The t = 0 diagnostics report the thermal stiffness of the state the run starts from:
         // the initial regions have just changed temperatures, and a deposition may have left
         // the heat model out (`bed::deposition`), so that no force pass has measured it.
-        if let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) {
-            // Measured in the run's own scratch arrays, not a copy of the whole thermal state
-            // (about 100 B per particle at once): every step refills the heat flows before it
-            // reads them. The measurement keeps no per-slot conductances (8 B a pair slot,
-            // which would set a heated bed's peak memory): it computes each as it meets it.
-            self.force_summary.max_heat_rate = Some(thermal::max_stiffness(
+        if let (Some(model), Some(state)) = (&self.model.thermal, &self.thermal) {
+            self.max_heat_rate = Some(thermal::max_stiffness(
                 model,
                 &self.model.walls,
                 self.model.periodic.as_ref(),
@@ -509,7 +510,7 @@ impl Simulation {
     fn reorder(&mut self, order: &[u32]) {
         self.particles.select(order);
         if let Some(t) = &mut self.thermal {
-            t.select(order, &self.particles.mass);
+            t.select(order);
         }
         if let Some(r) = &mut self.rotation {
             r.select(order);
@@ -538,8 +539,13 @@ impl Simulation {
 
     /// The force pass (steps 4-5), of either kind ([`Evaluation`]: the set-up's, or a step's
     /// after the opening pass). With `[thermal]` it also computes the contact conductances and
-    /// the first substep's heat flows.
-    fn compute_forces(&mut self, evaluation: Evaluation) -> ForceSummary {
+    /// the first substep's heat flows, and adds each particle's total conductance G_i into
+    /// `totals` where given.
+    fn compute_forces(
+        &mut self,
+        evaluation: Evaluation,
+        totals: Option<&mut [f64]>,
+    ) -> ForceSummary {
         let heat = match (&self.model.thermal, &mut self.thermal) {
             (Some(model), Some(state)) => {
                 let ThermalState {
@@ -547,7 +553,7 @@ impl Simulation {
                     melted,
                     laser,
                     materials,
-                    heat_sums,
+                    heat_flow,
                     boundary,
                     ..
                 } = state;
@@ -557,7 +563,8 @@ impl Simulation {
                     temperature,
                     laser_power: laser.as_ref().map(|l| l.power.as_slice()),
                     materials,
-                    sums: heat_sums,
+                    sums: heat_flow,
+                    totals,
                     boundary_flow: boundary.as_mut().map(|b| b.flow.as_mut_slice()),
                 })
             }
@@ -710,8 +717,9 @@ impl Simulation {
     }
 
     /// Step 6 of the step order: temperatures over dt, the first substep's flows given. Keeps
-    /// the first substep's `max G_i / C_i` in the force summary where it was taken.
+    /// the first substep's `max G_i / C_i` where it was taken (`max_heat_rate`).
     fn advance_temperatures(&mut self, first_flows: Option<thermal::HeatRate>) {
+        self.max_heat_rate = None;
         if let (Some(model), Some(state)) = (&self.model.thermal, &mut self.thermal) {
             let taken = thermal::advance(
                 model,
@@ -725,7 +733,7 @@ impl Simulation {
                     periodic: self.model.periodic.as_ref(),
                 },
             );
-            self.force_summary.max_heat_rate = self.force_summary.max_heat_rate.or(taken);
+            self.max_heat_rate = taken;
         }
     }
 
@@ -768,7 +776,7 @@ impl Simulation {
         let mut opening = integrate::Opening::AfterStep;
         for done in 1..=count {
             self.open_step(opening);
-            self.forces_and_temperatures();
+            self.forces_and_temperatures(done == count);
             // Found anew at every step, by its closing kick or by the test below.
             self.non_finite_force = None;
             self.step += 1;
@@ -791,7 +799,7 @@ impl Simulation {
     fn open_step(&mut self, opening: integrate::Opening) {
         let dt = self.model.dt;
         // The force pass's heat sums are zeroed with the forces (its `cleared`).
-        let sums = self.thermal.as_mut().map(|t| t.heat_sums.as_mut_slice());
+        let sums = self.thermal.as_mut().map(|t| t.heat_flow.as_mut_slice());
         let drift = integrate::kick_drift(
             &mut self.particles,
             self.rotation.as_mut(),
@@ -808,23 +816,34 @@ impl Simulation {
         self.absorb_laser();
     }
 
-    /// Steps 4-6: the forces and the temperatures.
-    fn forces_and_temperatures(&mut self) {
+    /// Steps 4-6: the forces and the temperatures. With `take_rate` (the last step of an
+    /// [`Simulation::advance`] call, whose state an output may read), the largest `G_i / C_i`
+    /// of the first substep too, for the diagnostics.
+    fn forces_and_temperatures(&mut self, take_rate: bool) {
+        // At that step the force pass sums each G_i, into an array of its own (8 B a particle,
+        // for that step alone): the other steps only bound the rate, which sets the substeps,
+        // and a pass of its own to measure it would cost about as much as a step's heat.
+        let mut totals = (take_rate && self.model.thermal.is_some() && self.thermal.is_some())
+            .then(|| vec![0.0; self.particles.len()]);
         // The opening pass left the forces at the weights and the torques and heat sums at zero
         // (a rebuild permutes and drops particles with their forces).
-        let summary = self.compute_forces(Evaluation::Step);
+        let summary = self.compute_forces(Evaluation::Step, totals.as_deref_mut());
         self.peak_overlap_ratio = self.peak_overlap_ratio.max(summary.max_overlap_ratio);
         self.force_summary = summary;
-        let first_flows = self
-            .thermal
-            .as_ref()
-            .map(|state| match summary.max_heat_rate {
-                Some(rate) => thermal::HeatRate::Exact(rate),
-                None => {
-                    thermal::HeatRate::at_most(summary.max_conductance, state.min_heat_capacity)
-                }
-            });
+        let first_flows = self.model.thermal.as_ref().map(|model| {
+            thermal::HeatRate::at_most(
+                summary.heat_rate_bound,
+                self.neighbors.max_degree(),
+                model.smallest_specific_heat(),
+            )
+        });
         self.advance_temperatures(first_flows);
+        if let (Some(totals), Some(state)) = (totals, &self.thermal) {
+            // The same bits as a rate the step took itself up to the order of each sum; this
+            // one is in the force pass's order, whichever the step took.
+            let rate = thermal::max_heat_rate(&totals, state, &self.particles);
+            self.max_heat_rate = Some(rate);
+        }
     }
 
     /// Bond state of the pair of particle ids `(a, b)` (in either order); `Unbonded` if the pair
